@@ -1,0 +1,1 @@
+//! The co-rotational 3D beam element (paper section 2).

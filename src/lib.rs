@@ -1,0 +1,11 @@
+//! latdyn: large-angle transient dynamics of flexible multibody systems, after NASA's
+//! LATDYN (Wu, Chang & Housner 1989): co-rotational 3D beam elements, rigid joint bodies
+//! and hinge angles built into the element connectivity, implicit time integration.
+//!
+//! Data flow: model file → [`model::compile`] → immutable [`model::Model`] →
+//! per-run [`solver::State`] → stages (kinematics, element evaluation, assembly, sparse
+//! solve, integrator update, sensors).
+
+pub mod element;
+pub mod math;
+pub mod model;

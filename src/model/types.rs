@@ -1,0 +1,266 @@
+//! The compiled, immutable model: flat arrays in solver vocabulary.
+//!
+//! `compile()` turns a parsed spec plus parameter values into this. Everything the stages
+//! need is here; nothing here changes during a run (per-run state lives in `State`).
+
+use crate::math::{Mat3, Vec3};
+
+/// Cross-section and material data of one beam element, already resolved to numbers.
+/// Local axes: x along the element, y = the beam's `orientation` vector made
+/// perpendicular to x, z = x × y. `eiy` resists bending about local y (displacement
+/// along z), `eiz` bending about local z (displacement along y).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BeamProps {
+    pub ea: f64,
+    pub eiy: f64,
+    pub eiz: f64,
+    pub gj: f64,
+    /// mass per unit length [kg/m]
+    pub rho_a: f64,
+    /// rotary inertia per unit length about local y, ∫ρ z² dA [kg·m]
+    pub rho_iy: f64,
+    /// rotary inertia per unit length about local z, ∫ρ y² dA [kg·m]
+    pub rho_iz: f64,
+}
+
+/// One two-node beam element.
+#[derive(Clone, Debug)]
+pub struct Element {
+    pub n1: usize,
+    pub n2: usize,
+    pub props: BeamProps,
+    /// Initial convected frame T_C0 (columns: x along n1→n2, y, z), in the global frame.
+    pub frame0: Mat3,
+    /// index of the beam (spec `[[beams]]` entry) this element belongs to
+    pub beam: usize,
+}
+
+/// A beam as the user wrote it: a chain of elements.
+#[derive(Clone, Debug)]
+pub struct Beam {
+    pub name: String,
+    /// element indices from the `from` end to the `to` end
+    pub elements: Vec<usize>,
+    /// node indices from `from` to `to` (elements.len() + 1 entries)
+    pub nodes: Vec<usize>,
+}
+
+/// How a scalar coordinate moves: solved for, or prescribed by a time function.
+#[derive(Clone, Debug)]
+pub enum DofMode {
+    Free,
+    /// prescribed value q(t), with exact first and second time derivatives
+    Driven(crate::model::expr::TimeFunction),
+}
+
+/// One scalar generalized coordinate (translation along an axis, an angle, one component
+/// of a spin increment). Spin components have no scalar value of their own: their
+/// configuration lives in a rotation matrix (see `Spin`).
+#[derive(Clone, Debug)]
+pub struct Dof {
+    pub name: String,
+    pub mode: DofMode,
+    /// initial value (ignored for spin components) and initial rate
+    pub q0: f64,
+    pub v0: f64,
+    /// index among the free dofs (the unknowns), None if driven
+    pub eq: Option<usize>,
+}
+
+/// Three dofs whose configuration is a rotation matrix updated multiplicatively:
+/// R ← exp(skew(Δ)) R, Δ a spatial (global-frame) rotation increment.
+#[derive(Clone, Debug)]
+pub struct Spin {
+    /// dof indices of the x, y, z spatial components
+    pub dofs: [usize; 3],
+    /// initial angular velocity (global frame)
+    pub omega0: Vec3,
+}
+
+/// One column of a kinematic chain: the motion produced by a unit rate of one dof.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ChainLink {
+    /// translation of everything downstream along a fixed global direction
+    Translate { dof: usize, dir: Vec3 },
+    /// rotation of everything downstream about a fixed global axis through a point that
+    /// is itself moved by upstream links (a body's single rotation coordinate)
+    RotateFixedAxis { dof: usize, axis: Vec3 },
+    /// one spatial component (k = 0, 1, 2) of a spin group, about the body/node origin
+    SpinComponent { dof: usize, spin: usize, k: usize },
+    /// a revolute hinge; its axis is fixed in the parent (body or master node) frame and
+    /// so turns with every upstream rotation. `hinge` indexes `Model::hinges`.
+    Hinge { dof: usize, hinge: usize },
+}
+
+/// What a body's origin and orientation are made of.
+#[derive(Clone, Debug)]
+pub struct Body {
+    pub name: String,
+    /// reference point and orientation in the initial configuration
+    pub x0: Vec3,
+    pub r0: Mat3,
+    pub mass: f64,
+    /// centre of mass relative to the reference point, body frame
+    pub com: Vec3,
+    /// inertia tensor about the centre of mass, body frame
+    pub inertia: Mat3,
+    /// links in order: translations first, then at most one rotation kind
+    pub chain: Vec<ChainLink>,
+}
+
+/// How a node's position and orientation are obtained.
+#[derive(Clone, Debug)]
+pub enum NodeKin {
+    /// independent node: 0..3 translation dofs (fixed components stay at the initial
+    /// position) and an optional spin group (None = orientation fixed at identity)
+    Free {
+        trans: [Option<usize>; 3],
+        spin: Option<usize>,
+    },
+    /// rigidly fixed to a body (`body` = None means ground): x = X_B + R_B s,
+    /// R_n = R_B R_rel, optionally through a hinge (R_n = R_B Rot(a,θ) R_rel)
+    OnBody {
+        body: Option<usize>,
+        /// attachment point in the body frame, relative to the body reference point
+        s: Vec3,
+        hinge: Option<usize>,
+        /// R_rel such that the initial node rotation is identity
+        r_rel: Mat3,
+    },
+    /// joined to another node by a revolute hinge: same position, R_n = R_m Rot(a,θ) R_rel
+    OnNode {
+        master: usize,
+        hinge: usize,
+        r_rel: Mat3,
+    },
+}
+
+/// A revolute hinge: one angle dof about an axis fixed in the parent frame.
+#[derive(Clone, Debug)]
+pub struct Hinge {
+    pub name: String,
+    pub dof: usize,
+    /// unit axis in the parent's frame (body frame, or master node's rotated frame)
+    pub axis_local: Vec3,
+    /// rotational spring [N·m/rad] about `angle_ref`, damper [N·m·s/rad]
+    pub stiffness: f64,
+    pub damping: f64,
+    pub angle_ref: f64,
+    /// the hinge becomes rigid when its angle reaches `lock_angle` or at `lock_time`
+    pub lock_angle: Option<f64>,
+    pub lock_time: Option<f64>,
+}
+
+/// A dead (non-follower) load on a node, global frame, scaled by the load factor.
+#[derive(Clone, Debug)]
+pub struct NodeLoad {
+    pub node: usize,
+    pub force: Vec3,
+    pub moment: Vec3,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum SensorKind {
+    /// node displacement (3) and rotation vector of R_n (3), global frame
+    NodeDisplacement { node: usize },
+    /// node position (3), global frame
+    NodePosition { node: usize },
+    /// section forces at fraction `xi` ∈ [0,1] of element `element`, in the convected frame:
+    /// [N, Vy, Vz, T, My, Mz]
+    Section { element: usize, xi: f64 },
+    /// one component of the above section forces (name from `SECTION_COMPONENTS`)
+    SectionComponent { element: usize, xi: f64, component: usize },
+    /// hinge angle and rate
+    HingeAngle { hinge: usize },
+    /// body reference point position (3) and rotation vector (3)
+    BodyPose { body: usize },
+    /// a node's displacement projected on a global direction (scalar)
+    NodeDirection { node: usize, dir: Vec3 },
+    /// kinetic, strain energy, work of drivers
+    Energy,
+}
+
+pub const SECTION_COMPONENTS: [&str; 6] = ["N", "Vy", "Vz", "T", "My", "Mz"];
+
+#[derive(Clone, Debug)]
+pub struct Sensor {
+    pub name: String,
+    pub kind: SensorKind,
+}
+
+/// Time integration and solver settings, from the model's `[solver]` table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolverSettings {
+    pub t_end: f64,
+    pub dt: f64,
+    /// output sampling interval (0 = every step)
+    pub output_dt: f64,
+    /// generalized-α spectral radius at infinite frequency
+    pub rho_inf: f64,
+    /// Newton: relative residual tolerance and maximum iterations
+    pub tol: f64,
+    pub max_iter: usize,
+    /// smallest step before the run gives up
+    pub dt_min: f64,
+    /// Rayleigh damping C = alpha M + beta K (element level)
+    pub rayleigh_alpha: f64,
+    pub rayleigh_beta: f64,
+    /// statics: number of initial load steps
+    pub load_steps: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            t_end: 1.0,
+            dt: 1e-3,
+            output_dt: 0.0,
+            rho_inf: 0.9,
+            tol: 1e-8,
+            max_iter: 25,
+            dt_min: 1e-9,
+            rayleigh_alpha: 0.0,
+            rayleigh_beta: 0.0,
+            load_steps: 1,
+        }
+    }
+}
+
+/// The compiled model of one variant.
+#[derive(Clone, Debug)]
+pub struct Model {
+    pub name: String,
+    /// path of the model file (for messages) and its full text (stored in output files)
+    pub path: String,
+    pub source: String,
+    /// resolved parameter values, in file order
+    pub params: Vec<(String, f64)>,
+    pub node_names: Vec<String>,
+    /// initial (reference) node positions
+    pub x0: Vec<Vec3>,
+    pub node_kin: Vec<NodeKin>,
+    pub elements: Vec<Element>,
+    pub beams: Vec<Beam>,
+    pub bodies: Vec<Body>,
+    pub dofs: Vec<Dof>,
+    pub spins: Vec<Spin>,
+    pub hinges: Vec<Hinge>,
+    pub loads: Vec<NodeLoad>,
+    pub gravity: Vec3,
+    pub sensors: Vec<Sensor>,
+    pub solver: SolverSettings,
+    /// number of free dofs (unknowns)
+    pub n_eq: usize,
+}
+
+impl Model {
+    pub fn param(&self, name: &str) -> Option<f64> {
+        self.params.iter().find(|(n, _)| n == name).map(|(_, v)| *v)
+    }
+    pub fn node_index(&self, name: &str) -> Option<usize> {
+        self.node_names.iter().position(|n| n == name)
+    }
+    pub fn sensor_index(&self, name: &str) -> Option<usize> {
+        self.sensors.iter().position(|s| s.name == name)
+    }
+}
