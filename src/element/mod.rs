@@ -1,1 +1,10 @@
-//! The co-rotational 3D beam element (paper section 2).
+//! The co-rotational 3D beam element (paper section 2): pure, allocation-free functions of
+//! (element data, nodal state). The GPU kernels mirror these and are tested against them.
+
+pub mod ad;
+pub mod beam;
+
+pub use beam::*;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,164 @@
+//! Scalars for the element functions: plain `f64`, and a hyper-dual number that carries
+//! two first-order directional derivatives and their mixed second derivative.
+//!
+//! The element's kinematics are written once, generic over [`Real`]; evaluated in `f64`
+//! they give values, in [`HyperDual`] they give exact (to round-off) first and second
+//! directional derivatives, so the internal force, the consistent tangent, the
+//! configuration-dependent mass matrix and the quadratic-velocity terms all come from the
+//! same formulas as the strain energy and the position field, with no hand-derived
+//! Hessians to get wrong.
+
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+pub trait Real:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    fn cst(v: f64) -> Self;
+    fn sqrt(self) -> Self;
+    fn value(self) -> f64;
+}
+
+impl Real for f64 {
+    #[inline]
+    fn cst(v: f64) -> Self {
+        v
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    #[inline]
+    fn value(self) -> f64 {
+        self
+    }
+}
+
+/// v + a ε₁ + b ε₂ + ab ε₁ε₂ with ε₁² = ε₂² = 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HyperDual {
+    pub v: f64,
+    pub a: f64,
+    pub b: f64,
+    pub ab: f64,
+}
+
+impl HyperDual {
+    #[inline]
+    pub fn new(v: f64, a: f64, b: f64, ab: f64) -> Self {
+        HyperDual { v, a, b, ab }
+    }
+    /// apply a scalar function given its value and first two derivatives at `self.v`
+    #[inline]
+    fn lift(self, f: f64, f1: f64, f2: f64) -> Self {
+        HyperDual {
+            v: f,
+            a: f1 * self.a,
+            b: f1 * self.b,
+            ab: f1 * self.ab + f2 * self.a * self.b,
+        }
+    }
+}
+
+impl Add for HyperDual {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        HyperDual::new(self.v + o.v, self.a + o.a, self.b + o.b, self.ab + o.ab)
+    }
+}
+impl Sub for HyperDual {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        HyperDual::new(self.v - o.v, self.a - o.a, self.b - o.b, self.ab - o.ab)
+    }
+}
+impl Neg for HyperDual {
+    type Output = Self;
+    #[inline]
+    fn neg(self) -> Self {
+        HyperDual::new(-self.v, -self.a, -self.b, -self.ab)
+    }
+}
+impl Mul for HyperDual {
+    type Output = Self;
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        HyperDual::new(
+            self.v * o.v,
+            self.v * o.a + self.a * o.v,
+            self.v * o.b + self.b * o.v,
+            self.v * o.ab + self.a * o.b + self.b * o.a + self.ab * o.v,
+        )
+    }
+}
+impl Div for HyperDual {
+    type Output = Self;
+    #[inline]
+    fn div(self, o: Self) -> Self {
+        let inv = 1.0 / o.v;
+        self * o.lift(inv, -inv * inv, 2.0 * inv * inv * inv)
+    }
+}
+
+impl Real for HyperDual {
+    #[inline]
+    fn cst(v: f64) -> Self {
+        HyperDual::new(v, 0.0, 0.0, 0.0)
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        let s = self.v.sqrt();
+        self.lift(s, 0.5 / s, -0.25 / (s * self.v))
+    }
+    #[inline]
+    fn value(self) -> f64 {
+        self.v
+    }
+}
+
+pub type V3<R> = [R; 3];
+/// row-major 3x3; columns are frame axes
+pub type M3<R> = [[R; 3]; 3];
+
+#[inline]
+pub fn vadd<R: Real>(a: V3<R>, b: V3<R>) -> V3<R> {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+#[inline]
+pub fn vsub<R: Real>(a: V3<R>, b: V3<R>) -> V3<R> {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+pub fn vscale<R: Real>(a: V3<R>, s: R) -> V3<R> {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+#[inline]
+pub fn vdot<R: Real>(a: V3<R>, b: V3<R>) -> R {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+pub fn vcross<R: Real>(a: V3<R>, b: V3<R>) -> V3<R> {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline]
+pub fn mcol<R: Real>(m: &M3<R>, j: usize) -> V3<R> {
+    [m[0][j], m[1][j], m[2][j]]
+}
+#[inline]
+pub fn mvec<R: Real>(m: &M3<R>, v: V3<R>) -> V3<R> {
+    [
+        m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+        m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+        m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
+    ]
+}

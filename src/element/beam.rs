@@ -1,0 +1,410 @@
+//! The LATDYN 3D beam element (Wu, Chang & Housner 1989, section 2) as pure functions of
+//! (element data, nodal state).
+//!
+//! Element dofs, 12 in this order: node-1 position increment (3), node-1 spatial rotation
+//! increment (3), node-2 position (3), node-2 rotation (3). Rotation increments are
+//! spatial (global-frame) spins: a node's frame is updated as T ← exp(skew(δπ)) T, so no
+//! Euler-angle singularities exist anywhere.
+//!
+//! Kinematics (paper eqs. 5-10): the convected frame T_C has X_C along the chord
+//! node 1 → node 2 and Y_C in the plane of X_C and node 1's y axis; deformation angles
+//! φ_xi = t_c3·t_i2, φ_yi = t_c1·t_i3, φ_zi = t_c2·t_i1. Internal forces come from the
+//! Bernoulli strain energy (eq. 21) with cubic Hermite bending, linear torsion and the
+//! chord stretch, computed cancellation-free as (2 X·d + d·d)/(|X+d| + |X|).
+//!
+//! Inertia (eq. 19): the position of a material point (ξ, y, z) is
+//! x_P = x1 + ξ (x2 − x1) + T_C (u + θ × (0, y, z)) with u the Hermite bending field and θ
+//! the section rotation, so x_P = a(ξ) + y b(ξ) + z c(ξ). With principal centroidal
+//! section axes ∫y = ∫z = ∫yz = 0, and ∫μ gᵀg dΩ = ∫ (ρA a'ᵀa' + ρI_z b'ᵀb' + ρI_y c'ᵀc')
+//! dx exactly; the remaining integral along the element is polynomial of degree ≤ 6 in ξ
+//! and is done with 4-point Gauss-Legendre, which is exact for degree 7.
+
+use super::ad::{mcol, mvec, vadd, vcross, vdot, vscale, vsub, HyperDual, Real, M3, V3};
+use crate::math::{Mat3, Vec3};
+use crate::model::BeamProps;
+
+pub const NDOF: usize = 12;
+pub type Vec12 = [f64; NDOF];
+pub type Mat12 = [[f64; NDOF]; NDOF];
+
+/// Undeformed data of one element.
+#[derive(Clone, Copy, Debug)]
+pub struct ElemData {
+    pub props: BeamProps,
+    /// initial convected frame (columns x along the chord, y, z), global
+    pub frame0: Mat3,
+    /// initial chord x2 − x1
+    pub chord0: Vec3,
+    /// initial length |chord0|
+    pub l0: f64,
+}
+
+impl ElemData {
+    pub fn new(props: BeamProps, frame0: Mat3, x1: Vec3, x2: Vec3) -> Self {
+        let chord0 = crate::math::sub(x2, x1);
+        ElemData {
+            props,
+            frame0,
+            chord0,
+            l0: crate::math::norm(chord0),
+        }
+    }
+}
+
+/// Current state of the element's two nodes: displacements and rotations from the
+/// reference configuration (the node's frame for this element is `r · frame0`).
+/// Displacements, not positions, so the chord change d = u2 − u1 carries no round-off from
+/// large coordinates (decisive in f32, harmless in f64).
+#[derive(Clone, Copy, Debug)]
+pub struct ElemState {
+    pub u1: Vec3,
+    pub r1: Mat3,
+    pub u2: Vec3,
+    pub r2: Mat3,
+}
+
+/// Deformation measures in the convected frame.
+#[derive(Clone, Copy, Debug)]
+pub struct Kin<R> {
+    pub tc: M3<R>,
+    /// [φx1, φy1, φz1, φx2, φy2, φz2]
+    pub phi: [R; 6],
+    /// chord stretch ℓ − L0
+    pub u1: R,
+    /// current chord length ℓ
+    pub len: R,
+}
+
+/// Convected frame, deformation angles and stretch (paper eqs. 5-10).
+#[inline]
+pub fn kinematics<R: Real>(
+    chord0: Vec3,
+    l0: f64,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+) -> Kin<R> {
+    let big_x = [R::cst(chord0[0]), R::cst(chord0[1]), R::cst(chord0[2])];
+    let d = vsub(u2, u1);
+    let lvec = vadd(big_x, d);
+    let len = vdot(lvec, lvec).sqrt();
+    // cancellation-free ℓ − L0: small strains on long elements stay exact in f32 too
+    let u1 = (R::cst(2.0) * vdot(big_x, d) + vdot(d, d)) / (len + R::cst(l0));
+    let e = vscale(lvec, R::cst(1.0) / len);
+    let c = vcross(e, mcol(t1, 1));
+    let tc3 = vscale(c, R::cst(1.0) / vdot(c, c).sqrt());
+    let tc2 = vcross(tc3, e);
+    let tc = [
+        [e[0], tc2[0], tc3[0]],
+        [e[1], tc2[1], tc3[1]],
+        [e[2], tc2[2], tc3[2]],
+    ];
+    let ang = |t: &M3<R>| {
+        [
+            vdot(tc3, mcol(t, 1)),
+            vdot(e, mcol(t, 2)),
+            vdot(tc2, mcol(t, 0)),
+        ]
+    };
+    let a1 = ang(t1);
+    let a2 = ang(t2);
+    Kin {
+        tc,
+        phi: [a1[0], a1[1], a1[2], a2[0], a2[1], a2[2]],
+        u1,
+        len,
+    }
+}
+
+/// Bernoulli strain energy (paper eq. 21) of the deformation measures.
+#[inline]
+pub fn energy<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> R {
+    let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
+    let half = R::cst(0.5);
+    let tw = fx2 - fx1;
+    // ∫ EI v''² dx / 2 for Hermite v with end slopes θ1, θ2 = (2EI/L)(θ1² + θ1θ2 + θ2²)
+    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
+    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
+    half * R::cst(p.ea / l0) * k.u1 * k.u1
+        + half * R::cst(p.gj / l0) * tw * tw
+        + R::cst(2.0 * p.eiz / l0) * bz
+        + R::cst(2.0 * p.eiy / l0) * by
+}
+
+/// Position field x_P = a + y b + z c at station ξ (see module docs), with `x1` node 1's
+/// position and `chord` = x2 − x1.
+#[inline]
+pub fn section_fields<R: Real>(k: &Kin<R>, x1: V3<R>, chord: V3<R>, xi: f64) -> [V3<R>; 3] {
+    let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
+    let n1 = R::cst(xi - 2.0 * xi * xi + xi * xi * xi);
+    let n2 = R::cst(-xi * xi + xi * xi * xi);
+    let d1 = R::cst(1.0 - 4.0 * xi + 3.0 * xi * xi);
+    let d2 = R::cst(-2.0 * xi + 3.0 * xi * xi);
+    let uy = k.len * (n1 * fz1 + n2 * fz2);
+    let uz = -(k.len * (n1 * fy1 + n2 * fy2));
+    let thx = R::cst(1.0 - xi) * fx1 + R::cst(xi) * fx2;
+    let thy = d1 * fy1 + d2 * fy2;
+    let thz = d1 * fz1 + d2 * fz2;
+    let zero = R::cst(0.0);
+    let one = R::cst(1.0);
+    let a = vadd(
+        vadd(x1, vscale(chord, R::cst(xi))),
+        mvec(&k.tc, [zero, uy, uz]),
+    );
+    let b = mvec(&k.tc, [-thz, one, thx]);
+    let c = mvec(&k.tc, [thy, -thx, one]);
+    [a, b, c]
+}
+
+/// Node frames for this element from the node rotations.
+#[inline]
+fn node_frames(e: &ElemData, s: &ElemState) -> (Mat3, Mat3) {
+    (
+        crate::math::mat_mul(&s.r1, &e.frame0),
+        crate::math::mat_mul(&s.r2, &e.frame0),
+    )
+}
+
+/// Node position and frame perturbed along two element-dof directions `da`, `db`:
+/// x + ε₁ a + ε₂ b, and (I + ε₁A + ε₂B + ε₁ε₂ (AB + BA)/2) T with A = skew(a_rot).
+#[inline]
+fn perturb(x: Vec3, t: &Mat3, da: &[f64], db: &[f64]) -> (V3<HyperDual>, M3<HyperDual>) {
+    let xp = [0, 1, 2].map(|i| HyperDual::new(x[i], da[i], db[i], 0.0));
+    let wa = [da[3], da[4], da[5]];
+    let wb = [db[3], db[4], db[5]];
+    let mut tp = [[HyperDual::default(); 3]; 3];
+    for j in 0..3 {
+        let tj = crate::math::col(t, j);
+        let a = crate::math::cross(wa, tj);
+        let b = crate::math::cross(wb, tj);
+        let ab = crate::math::cross(wa, b);
+        let ba = crate::math::cross(wb, a);
+        for i in 0..3 {
+            tp[i][j] = HyperDual::new(tj[i], a[i], b[i], 0.5 * (ab[i] + ba[i]));
+        }
+    }
+    (xp, tp)
+}
+
+/// Evaluate the kinematics in hyper-dual numbers along element directions `da`, `db`.
+#[inline]
+fn kin_hd(
+    e: &ElemData,
+    s: &ElemState,
+    t1: &Mat3,
+    t2: &Mat3,
+    da: &Vec12,
+    db: &Vec12,
+) -> (Kin<HyperDual>, V3<HyperDual>, V3<HyperDual>) {
+    let (u1, tt1) = perturb(s.u1, t1, &da[0..6], &db[0..6]);
+    let (u2, tt2) = perturb(s.u2, t2, &da[6..12], &db[6..12]);
+    (kinematics(e.chord0, e.l0, u1, u2, &tt1, &tt2), u1, u2)
+}
+
+#[inline]
+fn unit(j: usize) -> Vec12 {
+    let mut u = [0.0; NDOF];
+    u[j] = 1.0;
+    u
+}
+
+/// Deformation measures of the current state (f64).
+pub fn deformation(e: &ElemData, s: &ElemState) -> Kin<f64> {
+    let (t1, t2) = node_frames(e, s);
+    kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2)
+}
+
+/// Strain energy of the current state.
+pub fn strain_energy(e: &ElemData, s: &ElemState) -> f64 {
+    energy(&e.props, e.l0, &deformation(e, s))
+}
+
+/// Internal force vector f = ∂U/∂q (forces and moments the element needs from its
+/// nodes; the nodal residual is f_int − f_ext).
+pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
+    let (t1, t2) = node_frames(e, s);
+    let zero = [0.0; NDOF];
+    let mut f = [0.0; NDOF];
+    for (j, fj) in f.iter_mut().enumerate() {
+        let (k, _, _) = kin_hd(e, s, &t1, &t2, &unit(j), &zero);
+        *fj = energy(&e.props, e.l0, &k).a;
+    }
+    f
+}
+
+/// Internal force and its consistent tangent K_jk = ∂f_j/∂q_k, where the state is
+/// perturbed multiplicatively (T ← exp(δπ̃) T). K is the symmetric second derivative plus
+/// −½ skew(m) on each node's rotation block, m that node's internal moment: the
+/// non-commutativity of spatial spins. K is symmetric at equilibrium states only.
+pub fn internal_force_tangent(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
+    let (t1, t2) = node_frames(e, s);
+    let mut f = [0.0; NDOF];
+    let mut k = [[0.0; NDOF]; NDOF];
+    for j in 0..NDOF {
+        let uj = unit(j);
+        for kk in j..NDOF {
+            let (kin, _, _) = kin_hd(e, s, &t1, &t2, &uj, &unit(kk));
+            let u = energy(&e.props, e.l0, &kin);
+            if kk == j {
+                f[j] = u.a;
+            }
+            k[j][kk] = u.ab;
+            k[kk][j] = u.ab;
+        }
+    }
+    for node in 0..2 {
+        let o = 6 * node + 3;
+        let m = [f[o], f[o + 1], f[o + 2]];
+        let sk = crate::math::skew(m);
+        for a in 0..3 {
+            for b in 0..3 {
+                k[o + a][o + b] -= 0.5 * sk[a][b];
+            }
+        }
+    }
+    (f, k)
+}
+
+/// 4-point Gauss-Legendre on [0, 1]
+pub const GAUSS4: [(f64, f64); 4] = [
+    (0.069_431_844_202_973_71, 0.173_927_422_568_726_93),
+    (0.330_009_478_207_571_87, 0.326_072_577_431_273_07),
+    (0.669_990_521_792_428_1, 0.326_072_577_431_273_07),
+    (0.930_568_155_797_026_3, 0.173_927_422_568_726_93),
+];
+
+/// Derivatives of the position fields (a, b, c) at the Gauss points along `da` (the `.a`
+/// part), and the mixed second derivative along (`da`, `db`) (the `.ab` part).
+fn field_derivs(
+    e: &ElemData,
+    s: &ElemState,
+    t1: &Mat3,
+    t2: &Mat3,
+    da: &Vec12,
+    db: &Vec12,
+) -> [[[HyperDual; 3]; 3]; 4] {
+    // only derivatives are used here, so node 1's displacement stands in for its position
+    let (kin, u1, u2) = kin_hd(e, s, t1, t2, da, db);
+    let c0 = e.chord0.map(HyperDual::cst);
+    let chord = vadd(c0, vsub(u2, u1));
+    let mut out = [[[HyperDual::default(); 3]; 3]; 4];
+    for (g, (xi, _)) in GAUSS4.iter().enumerate() {
+        out[g] = section_fields(&kin, u1, chord, *xi);
+    }
+    out
+}
+
+/// μ-weights of the three position fields per unit length: ρA for a, ρI_z for b
+/// (multiplies y), ρI_y for c (multiplies z).
+#[inline]
+fn field_weights(p: &BeamProps) -> [f64; 3] {
+    [p.rho_a, p.rho_iz, p.rho_iy]
+}
+
+/// g_j = ∂(a, b, c)/∂q_j at the Gauss points, for all 12 dofs.
+fn gradients(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3) -> [[[Vec3; 3]; 4]; NDOF] {
+    let zero = [0.0; NDOF];
+    let mut g = [[[[0.0; 3]; 3]; 4]; NDOF];
+    for (j, gj) in g.iter_mut().enumerate() {
+        let d = field_derivs(e, s, t1, t2, &unit(j), &zero);
+        for gp in 0..4 {
+            for f in 0..3 {
+                gj[gp][f] = [d[gp][f][0].a, d[gp][f][1].a, d[gp][f][2].a];
+            }
+        }
+    }
+    g
+}
+
+fn mass_from_gradients(e: &ElemData, g: &[[[Vec3; 3]; 4]; NDOF]) -> Mat12 {
+    let w = field_weights(&e.props);
+    let mut m = [[0.0; NDOF]; NDOF];
+    for j in 0..NDOF {
+        for k in j..NDOF {
+            let mut acc = 0.0;
+            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
+                for f in 0..3 {
+                    acc += wg * w[f] * crate::math::dot(g[j][gp][f], g[k][gp][f]);
+                }
+            }
+            m[j][k] = acc * e.l0;
+            m[k][j] = m[j][k];
+        }
+    }
+    m
+}
+
+/// Consistent, configuration-dependent mass matrix M = ∫ μ gᵀ g dΩ (paper eq. 19).
+pub fn mass_matrix(e: &ElemData, s: &ElemState) -> Mat12 {
+    let (t1, t2) = node_frames(e, s);
+    mass_from_gradients(e, &gradients(e, s, &t1, &t2))
+}
+
+/// Inertia terms at nodal velocities `v` = (ẋ1, ω1, ẋ2, ω2) (spatial angular velocities):
+/// the mass matrix M, the quadratic-velocity vector S = ∫ μ gᵀ ġ q̇ dΩ (paper eq. 19), and
+/// its velocity derivative C = ∂S/∂v (gyroscopic/Coriolis matrix for the Newton Jacobian).
+/// The inertial nodal force is M a + S with a = (ẍ1, α1, ẍ2, α2).
+pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradients(e, s, &t1, &t2);
+    let m = mass_from_gradients(e, &g);
+    let w = field_weights(&e.props);
+    // S_j = ∫ μ g_j · H(v, v), H the second derivative of the position field
+    let project = |h: &[[[HyperDual; 3]; 3]; 4], out: &mut Vec12, scale: f64| {
+        for (j, oj) in out.iter_mut().enumerate() {
+            let mut acc = 0.0;
+            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
+                for f in 0..3 {
+                    let hv = [h[gp][f][0].ab, h[gp][f][1].ab, h[gp][f][2].ab];
+                    acc += wg * w[f] * crate::math::dot(g[j][gp][f], hv);
+                }
+            }
+            *oj = scale * acc * e.l0;
+        }
+    };
+    let mut sv = [0.0; NDOF];
+    project(&field_derivs(e, s, &t1, &t2, v, v), &mut sv, 1.0);
+    let mut c = [[0.0; NDOF]; NDOF];
+    if v.iter().any(|x| *x != 0.0) {
+        for k in 0..NDOF {
+            let mut colk = [0.0; NDOF];
+            project(&field_derivs(e, s, &t1, &t2, v, &unit(k)), &mut colk, 2.0);
+            for j in 0..NDOF {
+                c[j][k] = colk[j];
+            }
+        }
+    }
+    (m, sv, c)
+}
+
+/// Section forces at station ξ ∈ [0, 1], convected frame: [N, Vy, Vz, T, My, Mz].
+/// N = EA (ℓ−L0)/L0 (tension positive), T = GJ (φx2 − φx1)/L0, My = EI_y κ_y and
+/// Mz = EI_z κ_z with κ = dθ/dx of the Hermite section rotation, Vy = dMz/dx,
+/// Vz = dMy/dx.
+pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64) -> [f64; 6] {
+    let k = deformation(e, s);
+    let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
+    let p = &e.props;
+    let l = e.l0;
+    let c1 = -4.0 + 6.0 * xi;
+    let c2 = -2.0 + 6.0 * xi;
+    [
+        p.ea * k.u1 / l,
+        p.eiz * 6.0 * (fz1 + fz2) / (l * l),
+        p.eiy * 6.0 * (fy1 + fy2) / (l * l),
+        p.gj * (fx2 - fx1) / l,
+        p.eiy * (c1 * fy1 + c2 * fy2) / l,
+        p.eiz * (c1 * fz1 + c2 * fz2) / l,
+    ]
+}
+
+/// Position of the material point at (ξ, y, z) of the section (f64), for output; `x1_0`
+/// is node 1's reference position.
+pub fn material_point(e: &ElemData, s: &ElemState, x1_0: Vec3, xi: f64, y: f64, z: f64) -> Vec3 {
+    let k = deformation(e, s);
+    let x1 = crate::math::add(x1_0, s.u1);
+    let chord = crate::math::add(e.chord0, crate::math::sub(s.u2, s.u1));
+    let [a, b, c] = section_fields(&k, x1, chord, xi);
+    crate::math::add(a, crate::math::add(crate::math::scale(b, y), crate::math::scale(c, z)))
+}
