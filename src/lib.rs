@@ -2,10 +2,15 @@
 //! LATDYN (Wu, Chang & Housner 1989): co-rotational 3D beam elements, rigid joint bodies
 //! and hinge angles built into the element connectivity, implicit time integration.
 //!
-//! Data flow: model file → [`model::compile`] → immutable [`model::Model`] →
-//! per-run [`solver::State`] → stages (kinematics, element evaluation, assembly, sparse
-//! solve, integrator update, sensors).
+//! Data flow: model file → [`model::load`] → immutable [`model::Model`] → per-run
+//! [`joint::State`] → stages (kinematics, element evaluation, assembly, sparse solve,
+//! integrator update, sensors).
 
+pub mod assembly;
 pub mod element;
+pub mod joint;
+pub mod linalg;
 pub mod math;
 pub mod model;
+pub mod sensors;
+pub mod solver;

@@ -1,0 +1,396 @@
+//! Assembly: element and body contributions, projected through the joint chains onto the
+//! generalized coordinates, into a residual vector and a Jacobian.
+//!
+//! The Jacobian is `ck·K + cc·C + cm·M` with K the tangent stiffness (element tangents,
+//! geometric stiffness of the joint maps, hinge springs), C the velocity derivative
+//! (gyroscopic terms, hinge dampers, Rayleigh damping) and M the mass. The same call with
+//! a [`PatternSink`] discovers the sparsity pattern once: every entry is visited whatever
+//! its value, so the pattern never misses an entry a later state needs.
+//!
+//! Not in the Jacobian (Newton still converges, at a rate set by how small they are):
+//! ∂(M(q)·a)/∂q, the configuration dependence of the mass matrix, of order |a|/L relative
+//! to the M/(βh²) term; the velocity derivative of the chains' convective accelerations;
+//! the load stiffness of distributed gravity on beams.
+
+use crate::element::{self, ElemData, ElemState, Mat12, NDOF};
+use crate::joint::{self, Chain, State};
+use crate::math::*;
+use crate::model::Model;
+
+/// Receives Jacobian entries by equation indices.
+pub trait Sink {
+    fn add(&mut self, row: usize, col: usize, v: f64);
+}
+
+/// Dense row-major n×n.
+pub struct DenseSink<'a> {
+    pub n: usize,
+    pub a: &'a mut [f64],
+}
+impl Sink for DenseSink<'_> {
+    #[inline]
+    fn add(&mut self, row: usize, col: usize, v: f64) {
+        self.a[row * self.n + col] += v;
+    }
+}
+
+/// Records which entries exist.
+#[derive(Default)]
+pub struct PatternSink {
+    pub entries: Vec<(usize, usize)>,
+}
+impl Sink for PatternSink {
+    fn add(&mut self, row: usize, col: usize, _v: f64) {
+        self.entries.push((row, col));
+    }
+}
+
+/// What to assemble.
+#[derive(Clone, Copy, Debug)]
+pub struct Coeffs {
+    /// scale of the external loads (statics load stepping); 1 in dynamics
+    pub load_factor: f64,
+    /// include inertia (dynamics) or not (statics)
+    pub inertia: bool,
+    pub ck: f64,
+    pub cc: f64,
+    pub cm: f64,
+}
+
+/// Immutable per-model data the assembly needs, built once.
+pub struct Assembler {
+    pub elems: Vec<ElemData>,
+    /// dof → equation (None for driven dofs)
+    pub eq: Vec<Option<usize>>,
+    pub n_eq: usize,
+}
+
+/// Scalars gathered during assembly.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AssemblyInfo {
+    /// largest magnitude of any single force contribution: the scale for convergence tests
+    pub force_scale: f64,
+    pub strain_energy: f64,
+    pub kinetic_energy: f64,
+}
+
+impl Assembler {
+    pub fn new(model: &Model) -> Assembler {
+        let elems = model
+            .elements
+            .iter()
+            .map(|e| ElemData::new(e.props, e.frame0, model.x0[e.n1], model.x0[e.n2]))
+            .collect();
+        Assembler {
+            elems,
+            eq: model.dofs.iter().map(|d| d.eq).collect(),
+            n_eq: model.n_eq,
+        }
+    }
+
+    /// Evaluate the residual (generalized forces, by dof, in `gen`: inertia + internal −
+    /// external; zero is equilibrium) and optionally the Jacobian into `sink`.
+    /// `gen` has one entry per dof; driven dofs receive their reaction (the force the
+    /// driver must supply is −gen).
+    pub fn evaluate(
+        &self,
+        model: &Model,
+        s: &State,
+        c: Coeffs,
+        gen: &mut [f64],
+        mut sink: Option<&mut dyn Sink>,
+    ) -> AssemblyInfo {
+        gen.iter_mut().for_each(|x| *x = 0.0);
+        let mut info = AssemblyInfo::default();
+        let g = model.gravity;
+        let gfac = if c.inertia { 1.0 } else { c.load_factor };
+        let has_gravity = g != [0.0; 3];
+        let track = |info: &mut AssemblyInfo, v: &[f64]| {
+            for x in v {
+                info.force_scale = info.force_scale.max(x.abs());
+            }
+        };
+        for (ie, el) in model.elements.iter().enumerate() {
+            let ed = &self.elems[ie];
+            let (n1, n2) = (el.n1, el.n2);
+            let es = ElemState {
+                u1: s.node_u[n1],
+                r1: s.node_r[n1],
+                u2: s.node_u[n2],
+                r2: s.node_r[n2],
+            };
+            let ch = [
+                joint::node_chain(model, s, n1),
+                joint::node_chain(model, s, n2),
+            ];
+            let y = [
+                joint::node_position(model, s, n1),
+                joint::node_position(model, s, n2),
+            ];
+            let (mut f, k) = element::internal_force_tangent(ed, &es);
+            track(&mut info, &f);
+            info.strain_energy += element::strain_energy(ed, &es);
+            let mut m = [[0.0; NDOF]; NDOF];
+            let mut cmat = [[0.0; NDOF]; NDOF];
+            if c.inertia || has_gravity {
+                let mut v12 = [0.0; NDOF];
+                let mut a12 = [0.0; NDOF];
+                if c.inertia {
+                    for nd in 0..2 {
+                        let (vl, va) = ch[nd].velocity(y[nd], &s.v);
+                        let (al, aa) = ch[nd].velocity(y[nd], &s.a);
+                        let (cl, ca) = ch[nd].convective_acc(y[nd], &s.v);
+                        v12[6 * nd..6 * nd + 3].copy_from_slice(&vl);
+                        v12[6 * nd + 3..6 * nd + 6].copy_from_slice(&va);
+                        a12[6 * nd..6 * nd + 3].copy_from_slice(&add(al, cl));
+                        a12[6 * nd + 3..6 * nd + 6].copy_from_slice(&add(aa, ca));
+                    }
+                }
+                let (mm, sv, cc) = element::inertia(ed, &es, &v12);
+                m = mm;
+                cmat = cc;
+                // gravity: the consistent load of a uniform field is M times a rigid
+                // translation by g
+                let gv = [g[0], g[1], g[2], 0.0, 0.0, 0.0, g[0], g[1], g[2], 0.0, 0.0, 0.0];
+                let mut finert = [0.0; NDOF];
+                for i in 0..NDOF {
+                    let mut acc = 0.0;
+                    for j in 0..NDOF {
+                        acc += m[i][j] * if c.inertia { a12[j] } else { 0.0 };
+                        acc -= gfac * m[i][j] * gv[j];
+                    }
+                    finert[i] = acc + if c.inertia { sv[i] } else { 0.0 };
+                }
+                track(&mut info, &finert);
+                for i in 0..NDOF {
+                    f[i] += finert[i];
+                }
+                if c.inertia {
+                    let mut ke = 0.0;
+                    for i in 0..NDOF {
+                        for j in 0..NDOF {
+                            ke += 0.5 * v12[i] * m[i][j] * v12[j];
+                        }
+                    }
+                    info.kinetic_energy += ke;
+                    if model.solver.rayleigh_alpha != 0.0 || model.solver.rayleigh_beta != 0.0 {
+                        let (ra, rb) = (model.solver.rayleigh_alpha, model.solver.rayleigh_beta);
+                        for i in 0..NDOF {
+                            let mut acc = 0.0;
+                            for j in 0..NDOF {
+                                let d = ra * m[i][j] + rb * k[i][j];
+                                acc += d * v12[j];
+                                cmat[i][j] += d;
+                            }
+                            f[i] += acc;
+                        }
+                    }
+                }
+            }
+            for nd in 0..2 {
+                let fl = [f[6 * nd], f[6 * nd + 1], f[6 * nd + 2]];
+                let ml = [f[6 * nd + 3], f[6 * nd + 4], f[6 * nd + 5]];
+                ch[nd].project(y[nd], fl, ml, gen);
+            }
+            if let Some(sk) = sink.as_deref_mut() {
+                let mut comb = [[0.0; NDOF]; NDOF];
+                for i in 0..NDOF {
+                    for j in 0..NDOF {
+                        comb[i][j] = c.ck * k[i][j] + c.cc * cmat[i][j] + c.cm * m[i][j];
+                    }
+                }
+                self.scatter_pair(s, model, &ch, &y, &comb, sk);
+                for nd in 0..2 {
+                    let fl = [f[6 * nd], f[6 * nd + 1], f[6 * nd + 2]];
+                    let ml = [f[6 * nd + 3], f[6 * nd + 4], f[6 * nd + 5]];
+                    self.geometric(s, model, &ch[nd], y[nd], fl, ml, c.ck, sk);
+                }
+            }
+        }
+
+        for (ib, body) in model.bodies.iter().enumerate() {
+            if body.chain.is_empty() {
+                continue;
+            }
+            let ch = joint::body_chain(model, s, ib);
+            let r = s.body_r[ib];
+            let y = add(s.body_x[ib], mat_vec(&r, body.com));
+            let is = mat_mul(&mat_mul(&r, &body.inertia), &transpose(&r));
+            let mut f = scale(g, -gfac * body.mass);
+            let mut mom = [0.0; 3];
+            let mut gyro = [[0.0; 3]; 3];
+            if c.inertia {
+                let (vl, w) = ch.velocity(y, &s.v);
+                let (al, aa) = ch.velocity(y, &s.a);
+                let (cl, ca) = ch.convective_acc(y, &s.v);
+                let acc = add(al, cl);
+                let alpha = add(aa, ca);
+                let iw = mat_vec(&is, w);
+                f = add(f, scale(acc, body.mass));
+                mom = add(mat_vec(&is, alpha), cross(w, iw));
+                info.kinetic_energy += 0.5 * body.mass * dot(vl, vl) + 0.5 * dot(w, iw);
+                let sw = skew(w);
+                let siw = skew(iw);
+                let swi = mat_mul(&sw, &is);
+                for i in 0..3 {
+                    for j in 0..3 {
+                        gyro[i][j] = swi[i][j] - siw[i][j];
+                    }
+                }
+            }
+            track(&mut info, &f);
+            track(&mut info, &mom);
+            ch.project(y, f, mom, gen);
+            if let Some(sk) = sink.as_deref_mut() {
+                let mut m6 = [[0.0; 6]; 6];
+                for i in 0..3 {
+                    m6[i][i] = c.cm * body.mass;
+                    for j in 0..3 {
+                        m6[3 + i][3 + j] = c.cm * is[i][j] + c.cc * gyro[i][j];
+                    }
+                }
+                self.scatter_block(s, model, &ch, y, &ch, y, &m6, sk);
+                self.geometric(s, model, &ch, y, f, mom, c.ck, sk);
+            }
+        }
+
+        for l in &model.loads {
+            let ch = joint::node_chain(model, s, l.node);
+            let y = joint::node_position(model, s, l.node);
+            let f = scale(l.force, -c.load_factor);
+            let m = scale(l.moment, -c.load_factor);
+            track(&mut info, &f);
+            track(&mut info, &m);
+            ch.project(y, f, m, gen);
+            if let Some(sk) = sink.as_deref_mut() {
+                self.geometric(s, model, &ch, y, f, m, c.ck, sk);
+            }
+        }
+
+        for (ih, h) in model.hinges.iter().enumerate() {
+            let th = s.q[h.dof];
+            let fh = h.stiffness * (th - h.angle_ref) + h.damping * s.v[h.dof];
+            gen[h.dof] += fh;
+            info.strain_energy += 0.5 * h.stiffness * (th - h.angle_ref).powi(2);
+            if let (Some(sk), Some(e)) = (sink.as_deref_mut(), self.eq[h.dof]) {
+                if !s.locked[ih] {
+                    sk.add(e, e, c.ck * h.stiffness + c.cc * h.damping);
+                }
+            }
+        }
+
+        // frozen (locked) dofs: identity rows keep the matrix regular; their residual is
+        // zeroed by the caller's gather
+        if let Some(sk) = sink.as_deref_mut() {
+            for (d, e) in self.eq.iter().enumerate() {
+                if let Some(e) = e {
+                    if !s.is_active(model, d) {
+                        sk.add(*e, *e, 1.0);
+                    }
+                }
+            }
+        }
+        info
+    }
+
+    /// Residual by equation from the by-dof generalized forces (frozen dofs give 0).
+    pub fn gather(&self, model: &Model, s: &State, gen: &[f64], r: &mut [f64]) {
+        r.iter_mut().for_each(|x| *x = 0.0);
+        for (d, e) in self.eq.iter().enumerate() {
+            if let Some(e) = e {
+                if s.is_active(model, d) {
+                    r[*e] = gen[d];
+                }
+            }
+        }
+    }
+
+    fn active_eq(&self, s: &State, model: &Model, dof: usize) -> Option<usize> {
+        if s.is_active(model, dof) {
+            self.eq[dof]
+        } else {
+            None
+        }
+    }
+
+    /// Bᵀ A B for the two nodes of an element (A is 12×12 over both nodes).
+    fn scatter_pair(
+        &self,
+        s: &State,
+        model: &Model,
+        ch: &[Chain; 2],
+        y: &[Vec3; 2],
+        a: &Mat12,
+        sk: &mut dyn Sink,
+    ) {
+        for na in 0..2 {
+            for nb in 0..2 {
+                let mut blk = [[0.0; 6]; 6];
+                for i in 0..6 {
+                    for j in 0..6 {
+                        blk[i][j] = a[6 * na + i][6 * nb + j];
+                    }
+                }
+                self.scatter_block(s, model, &ch[na], y[na], &ch[nb], y[nb], &blk, sk);
+            }
+        }
+    }
+
+    /// B_aᵀ A B_b for a 6×6 block between points ya (chain a) and yb (chain b).
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_block(
+        &self,
+        s: &State,
+        model: &Model,
+        cha: &Chain,
+        ya: Vec3,
+        chb: &Chain,
+        yb: Vec3,
+        a: &[[f64; 6]; 6],
+        sk: &mut dyn Sink,
+    ) {
+        // A·B_b columns first, then B_aᵀ rows
+        let mut ab = [[0.0; 6]; joint::MAXCHAIN];
+        for l in 0..chb.n {
+            let (tl, ta) = chb.twist(l, yb);
+            let col6 = [tl[0], tl[1], tl[2], ta[0], ta[1], ta[2]];
+            for i in 0..6 {
+                ab[l][i] = (0..6).map(|j| a[i][j] * col6[j]).sum();
+            }
+        }
+        for k in 0..cha.n {
+            let Some(ek) = self.active_eq(s, model, cha.cols[k].dof) else {
+                continue;
+            };
+            let (tl, ta) = cha.twist(k, ya);
+            let row6 = [tl[0], tl[1], tl[2], ta[0], ta[1], ta[2]];
+            for l in 0..chb.n {
+                let Some(el) = self.active_eq(s, model, chb.cols[l].dof) else {
+                    continue;
+                };
+                let v: f64 = (0..6).map(|i| row6[i] * ab[l][i]).sum();
+                sk.add(ek, el, v);
+            }
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn geometric(
+        &self,
+        s: &State,
+        model: &Model,
+        ch: &Chain,
+        y: Vec3,
+        f: Vec3,
+        m: Vec3,
+        ck: f64,
+        sk: &mut dyn Sink,
+    ) {
+        ch.geometric(y, f, m, |dk, dl, v| {
+            if let (Some(ek), Some(el)) = (self.active_eq(s, model, dk), self.active_eq(s, model, dl))
+            {
+                sk.add(ek, el, ck * v);
+            }
+        });
+    }
+}

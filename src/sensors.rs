@@ -1,0 +1,99 @@
+//! Sensors: named quantities sampled from a state (the last stage of a step).
+
+use crate::assembly::Assembler;
+use crate::element::{self, ElemState};
+use crate::joint::{self, State};
+use crate::math::*;
+use crate::model::{Model, SensorKind, SECTION_COMPONENTS};
+
+/// Component names of a sensor, in output order (units in `units`).
+pub fn components(kind: &SensorKind) -> Vec<&'static str> {
+    match kind {
+        SensorKind::NodeDisplacement { .. } | SensorKind::BodyPose { .. } => {
+            vec!["x", "y", "z", "rx", "ry", "rz"]
+        }
+        SensorKind::NodePosition { .. } => vec!["x", "y", "z"],
+        SensorKind::Section { .. } => SECTION_COMPONENTS.to_vec(),
+        SensorKind::SectionComponent { component, .. } => vec![SECTION_COMPONENTS[*component]],
+        SensorKind::HingeAngle { .. } => vec!["angle", "rate"],
+        SensorKind::NodeDirection { .. } => vec!["u"],
+        SensorKind::Energy => vec!["kinetic", "strain", "driver_work"],
+    }
+}
+
+/// SI units of each component.
+pub fn units(kind: &SensorKind) -> Vec<&'static str> {
+    match kind {
+        SensorKind::NodeDisplacement { .. } | SensorKind::BodyPose { .. } => {
+            vec!["m", "m", "m", "rad", "rad", "rad"]
+        }
+        SensorKind::NodePosition { .. } => vec!["m"; 3],
+        SensorKind::Section { .. } => vec!["N", "N", "N", "N*m", "N*m", "N*m"],
+        SensorKind::SectionComponent { component, .. } => {
+            vec![if *component < 3 { "N" } else { "N*m" }]
+        }
+        SensorKind::HingeAngle { .. } => vec!["rad", "rad/s"],
+        SensorKind::NodeDirection { .. } => vec!["m"],
+        SensorKind::Energy => vec!["J", "J", "J"],
+    }
+}
+
+/// Energies that the caller tracks over a run (kinetic and strain from the last
+/// assembly, driver work integrated by the integrator).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Energies {
+    pub kinetic: f64,
+    pub strain: f64,
+    pub driver_work: f64,
+}
+
+/// Values of one sensor at state `s`.
+pub fn sample(
+    model: &Model,
+    asm: &Assembler,
+    s: &State,
+    kind: &SensorKind,
+    energies: &Energies,
+) -> Vec<f64> {
+    let elem_state = |e: usize| {
+        let el = &model.elements[e];
+        ElemState {
+            u1: s.node_u[el.n1],
+            r1: s.node_r[el.n1],
+            u2: s.node_u[el.n2],
+            r2: s.node_r[el.n2],
+        }
+    };
+    match kind {
+        SensorKind::NodeDisplacement { node } => {
+            let u = s.node_u[*node];
+            let r = rot_log(&s.node_r[*node]);
+            vec![u[0], u[1], u[2], r[0], r[1], r[2]]
+        }
+        SensorKind::NodePosition { node } => joint::node_position(model, s, *node).to_vec(),
+        SensorKind::Section { element, xi } => {
+            element::section_forces(&asm.elems[*element], &elem_state(*element), *xi).to_vec()
+        }
+        SensorKind::SectionComponent {
+            element,
+            xi,
+            component,
+        } => {
+            vec![
+                element::section_forces(&asm.elems[*element], &elem_state(*element), *xi)
+                    [*component],
+            ]
+        }
+        SensorKind::HingeAngle { hinge } => {
+            let d = model.hinges[*hinge].dof;
+            vec![s.q[d], s.v[d]]
+        }
+        SensorKind::BodyPose { body } => {
+            let x = s.body_x[*body];
+            let r = rot_log(&s.body_r[*body]);
+            vec![x[0], x[1], x[2], r[0], r[1], r[2]]
+        }
+        SensorKind::NodeDirection { node, dir } => vec![dot(s.node_u[*node], *dir)],
+        SensorKind::Energy => vec![energies.kinetic, energies.strain, energies.driver_work],
+    }
+}

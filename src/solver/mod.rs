@@ -1,0 +1,60 @@
+//! Solvers: statics (load stepping), modes (linearised eigenproblem), and the Newton
+//! system they share.
+
+pub mod linear;
+pub mod modes;
+pub mod statics;
+pub mod dynamics;
+
+use crate::assembly::Assembler;
+use crate::joint::State;
+use crate::model::Model;
+use crate::sensors::{self, Energies};
+
+/// Result of a static solution: the equilibrium state, solver counts and every sensor.
+pub struct StaticSolution {
+    pub state: State,
+    pub report: statics::StaticsReport,
+    /// sensor values in model order
+    pub sensors: Vec<Vec<f64>>,
+    pub strain_energy: f64,
+}
+
+/// Static equilibrium of `model` under its loads, from the reference configuration.
+pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsError> {
+    let mut s = State::new(model);
+    let report = statics::solve(model, &mut s)?;
+    let asm = Assembler::new(model);
+    let strain: f64 = asm
+        .elems
+        .iter()
+        .zip(&model.elements)
+        .map(|(e, el)| {
+            crate::element::strain_energy(
+                e,
+                &crate::element::ElemState {
+                    u1: s.node_u[el.n1],
+                    r1: s.node_r[el.n1],
+                    u2: s.node_u[el.n2],
+                    r2: s.node_r[el.n2],
+                },
+            )
+        })
+        .sum();
+    let en = Energies {
+        kinetic: 0.0,
+        strain,
+        driver_work: 0.0,
+    };
+    let vals = model
+        .sensors
+        .iter()
+        .map(|sn| sensors::sample(model, &asm, &s, &sn.kind, &en))
+        .collect();
+    Ok(StaticSolution {
+        state: s,
+        report,
+        sensors: vals,
+        strain_energy: strain,
+    })
+}

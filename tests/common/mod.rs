@@ -1,0 +1,75 @@
+//! Shared helpers for the integration tests: models built from the shipped files or from a
+//! small straight-beam template, and sensor access by name.
+#![allow(dead_code)]
+
+use latdyn::model::{compile_str, load, Model};
+use std::path::Path;
+
+pub fn shipped(name: &str, sets: &[(&str, f64)]) -> Model {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name);
+    let o: Vec<(String, f64)> = sets.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+    load(&path, &o).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Straight beam along +x, length L, from `root` to `tip`, with `support` at the root,
+/// a dead tip force and moment, and sensors `tip` (node) and `tipx` (position).
+pub fn straight_beam(support: &str, elements: usize, props: &str, force: [f64; 3], moment: [f64; 3], extra: &str) -> Model {
+    let text = format!(
+        r#"
+[parameters]
+L = 1.0
+elements = {elements}
+
+[sections.s]
+{props}
+
+[[nodes]]
+name = "root"
+position = [0, 0, 0]
+
+[[nodes]]
+name = "tip"
+position = ["L", 0, 0]
+
+[[beams]]
+name = "beam"
+from = "root"
+to = "tip"
+elements = "elements"
+section = "s"
+
+[[supports]]
+node = "root"
+type = "{support}"
+
+[[loads]]
+node = "tip"
+force = [{}, {}, {}]
+moment = [{}, {}, {}]
+
+[[sensors]]
+name = "tip"
+type = "node"
+node = "tip"
+
+[[sensors]]
+name = "tipx"
+type = "position"
+node = "tip"
+
+[solver]
+load_steps = 4
+{extra}
+"#,
+        force[0], force[1], force[2], moment[0], moment[1], moment[2]
+    );
+    compile_str(&text, "straight_beam.toml", &[]).unwrap_or_else(|e| panic!("{e}"))
+}
+
+pub fn sensor<'a>(model: &Model, vals: &'a [Vec<f64>], name: &str) -> &'a [f64] {
+    &vals[model.sensor_index(name).expect("sensor")]
+}
+
+pub fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
