@@ -191,7 +191,10 @@ mod tests {
             let phi = scale(axis, th);
             let back = rot_log(&rot_exp(phi));
             for k in 0..3 {
-                assert!((back[k] - phi[k]).abs() < 1e-9, "θ={th}: {back:?} vs {phi:?}");
+                assert!(
+                    (back[k] - phi[k]).abs() < 1e-9,
+                    "θ={th}: {back:?} vs {phi:?}"
+                );
             }
         }
     }
