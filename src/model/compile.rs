@@ -648,10 +648,19 @@ impl Compiler<'_> {
             Shape::Circle => "circle",
             Shape::Rectangle => "rectangle",
         };
+        for (v, k) in dims {
+            if !used.contains(&k) {
+                self.forbid(
+                    v,
+                    &format!("{f}.{k}"),
+                    &format!("not used by shape `{shape_name}`"),
+                )?;
+            }
+        }
         let mut d = HashMap::new();
         for (v, k) in dims {
-            let fk = format!("{f}.{k}");
             if used.contains(&k) {
+                let fk = format!("{f}.{k}");
                 let why = format!(" (shape `{shape_name}` needs {})", used.join(", "));
                 let v = self.required(v, span.clone(), &fk, &why)?;
                 let x = if k == "inner_diameter" {
@@ -660,8 +669,6 @@ impl Compiler<'_> {
                     self.positive(v, &fk)?
                 };
                 d.insert(k, (x, v.span()));
-            } else {
-                self.forbid(v, &fk, &format!("not used by shape `{shape_name}`"))?;
             }
         }
         let pi = std::f64::consts::PI;
@@ -1471,5 +1478,444 @@ fn model_size(x0: &[Vec3], bodies: &[BodyDraft]) -> f64 {
         d
     } else {
         1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CANTILEVER: &str = include_str!("../../models/cantilever.toml");
+    const BEND45: &str = include_str!("../../models/bend45.toml");
+
+    fn compile(text: &str) -> Model {
+        compile_str(text, "t.toml", &[]).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn fails(text: &str) -> ModelError {
+        compile_str(text, "t.toml", &[]).expect_err("should not compile")
+    }
+
+    fn close(a: Vec3, b: Vec3, tol: f64) -> bool {
+        norm(sub(a, b)) <= tol
+    }
+
+    /// a straight free-free beam and whatever `extra` adds
+    fn with_beam(extra: &str) -> String {
+        format!(
+            "[sections.s]\nEA = 1\nEIy = 1\nEIz = 1\nGJ = 1\nrhoA = 1\n\
+             [[nodes]]\nname = \"a\"\nposition = [0, 0, 0]\n\
+             [[nodes]]\nname = \"b\"\nposition = [2, 0, 0]\n\
+             [[beams]]\nname = \"bm\"\nfrom = \"a\"\nto = \"b\"\nelements = 2\nsection = \"s\"\n{extra}"
+        )
+    }
+
+    #[test]
+    fn cantilever_mesh_dofs_and_sensors() {
+        let m = compile(CANTILEVER);
+        assert_eq!(m.name, "cantilever");
+        assert_eq!(m.node_names.len(), 9);
+        assert_eq!(m.node_names[2], "beam:1");
+        assert_eq!(m.node_names[8], "beam:7");
+        assert!(close(m.x0[2], [0.125, 0.0, 0.0], 1e-15));
+        assert_eq!(m.elements.len(), 8);
+        assert_eq!(m.beams[0].nodes[0], 0);
+        assert_eq!(*m.beams[0].nodes.last().unwrap(), 1);
+        assert_eq!((m.elements[0].n1, m.elements[0].n2), (0, 2));
+        assert_eq!((m.elements[7].n1, m.elements[7].n2), (8, 1));
+        assert_eq!(
+            m.elements[3].frame0, I3,
+            "beam along x: local axes are global"
+        );
+        assert_eq!(m.elements[0].props.eiy, 100.0);
+        assert!(matches!(
+            m.node_kin[0],
+            NodeKin::OnBody {
+                body: None,
+                hinge: None,
+                ..
+            }
+        ));
+        assert!(matches!(
+            m.node_kin[1],
+            NodeKin::Free {
+                trans: [Some(0), Some(1), Some(2)],
+                spin: Some(0)
+            }
+        ));
+        assert_eq!(m.spins[0].dofs, [3, 4, 5]);
+        assert_eq!(m.dofs.len(), 48);
+        assert_eq!(m.n_eq, 48);
+        assert_eq!(m.dofs[0].name, "tip.x");
+        assert_eq!(m.dofs[5].name, "tip.rz");
+        assert!(m.dofs.iter().enumerate().all(|(i, d)| d.eq == Some(i)));
+        assert_eq!(m.sensors[0].kind, SensorKind::NodeDisplacement { node: 1 });
+        assert_eq!(
+            m.sensors[1].kind,
+            SensorKind::SectionComponent {
+                element: 0,
+                xi: 0.0,
+                component: 4
+            }
+        );
+        assert_eq!(m.solver.dt, 1e-3);
+        assert_eq!(m.params[0], ("L".to_string(), 1.0));
+        assert_eq!(m.source, CANTILEVER);
+        assert_eq!(m.path, "t.toml");
+    }
+
+    #[test]
+    fn overrides_replace_parameters_and_unknown_ones_fail() {
+        let ov = [
+            ("elements".to_string(), 4.0),
+            ("P".to_string(), 5.0),
+            ("L".to_string(), 2.0),
+        ];
+        let m = compile_str(CANTILEVER, "c.toml", &ov).unwrap();
+        assert_eq!(m.elements.len(), 4);
+        assert_eq!(m.loads[0].force, [0.0, 0.0, 5.0]);
+        assert_eq!(m.x0[1], [2.0, 0.0, 0.0]);
+        assert_eq!(m.param("P"), Some(5.0));
+        let e = compile_str(CANTILEVER, "c.toml", &[("Q".to_string(), 1.0)]).unwrap_err();
+        assert!(
+            e.to_string().contains("`--set Q`") && e.to_string().contains("Q"),
+            "{e}"
+        );
+        // a derived parameter follows its override
+        let m = compile_str(BEND45, "b.toml", &[("E".to_string(), 2.0e7)]).unwrap();
+        assert_eq!(m.param("G"), Some(1.0e7));
+    }
+
+    #[test]
+    fn parse_set_accepts_numbers_and_constant_expressions() {
+        assert_eq!(parse_set("P=10").unwrap(), ("P".to_string(), 10.0));
+        assert_eq!(parse_set(" dt = 1e-4 ").unwrap(), ("dt".to_string(), 1e-4));
+        assert!((parse_set("w=2*pi").unwrap().1 - std::f64::consts::TAU).abs() < 1e-15);
+        assert!(parse_set("P").is_err());
+        assert!(parse_set("=3").is_err());
+        assert!(parse_set("P=abc").is_err());
+    }
+
+    #[test]
+    fn bend45_nodes_lie_on_the_arc() {
+        let m = compile(BEND45);
+        let c = [0.0, 100.0, 0.0];
+        assert_eq!(m.x0.len(), 9);
+        for x in &m.x0 {
+            assert!((norm(sub(*x, c)) - 100.0).abs() < 1e-9, "{x:?}");
+        }
+        let tip = [100.0 * (PI_4).sin(), 100.0 - 100.0 * (PI_4).cos(), 0.0];
+        assert!(close(m.x0[1], tip, 1e-12));
+        let chord = |e: &Element| norm(sub(m.x0[e.n2], m.x0[e.n1]));
+        let l0 = chord(&m.elements[0]);
+        assert!((l0 - 2.0 * 100.0 * (PI_4 / 16.0).sin()).abs() < 1e-9);
+        for e in &m.elements {
+            assert!((chord(e) - l0).abs() < 1e-9);
+            let y = col(&e.frame0, 1);
+            let mid = scale(add(m.x0[e.n1], m.x0[e.n2]), 0.5);
+            assert!(
+                dot(y, normalize(sub(c, mid))) > 1.0 - 1e-12,
+                "local y points to the centre"
+            );
+            assert!(close(col(&e.frame0, 2), [0.0, 0.0, 1.0], 1e-12));
+        }
+        assert!((m.elements[0].props.gj - 5.0e6 * 0.1406).abs() < 1e-6);
+        assert_eq!(m.sensors[0].kind, SensorKind::NodePosition { node: 1 });
+        assert_eq!(m.solver.load_steps, 20);
+    }
+    const PI_4: f64 = std::f64::consts::FRAC_PI_4;
+
+    #[test]
+    fn section_shapes() {
+        let text = |shape: &str| {
+            format!(
+                "[materials.m]\nE = 2\nG = 1\ndensity = 3\n[sections.s]\n{shape}\nmaterial = \"m\"\n\
+                 [[nodes]]\nname = \"a\"\nposition = [0, 0, 0]\n[[nodes]]\nname = \"b\"\nposition = [1, 0, 0]\n\
+                 [[beams]]\nname = \"bm\"\nfrom = \"a\"\nto = \"b\"\nelements = 1\nsection = \"s\"\n"
+            )
+        };
+        let pi = std::f64::consts::PI;
+        let p = compile(&text(
+            "shape = \"tube\"\nouter_diameter = 2\ninner_diameter = 1",
+        ))
+        .elements[0]
+            .props;
+        let i = pi * 15.0 / 64.0;
+        assert!((p.ea - 2.0 * pi * 3.0 / 4.0).abs() < 1e-12);
+        assert!((p.eiy - 2.0 * i).abs() < 1e-12 && (p.eiz - 2.0 * i).abs() < 1e-12);
+        assert!((p.gj - 2.0 * i).abs() < 1e-12);
+        assert!(
+            (p.rho_a - 3.0 * pi * 3.0 / 4.0).abs() < 1e-12 && (p.rho_iy - 3.0 * i).abs() < 1e-12
+        );
+        let p = compile(&text("shape = \"circle\"\ndiameter = 2")).elements[0].props;
+        assert!((p.eiy - 2.0 * pi / 4.0).abs() < 1e-12);
+        let p = compile(&text("shape = \"rectangle\"\nwidth = 2\nheight = 1")).elements[0].props;
+        assert_eq!(p.ea, 4.0);
+        assert!(
+            (p.eiy - 2.0 * 2.0 / 12.0).abs() < 1e-12,
+            "about y: b h^3/12"
+        );
+        assert!(
+            (p.eiz - 2.0 * 8.0 / 12.0).abs() < 1e-12,
+            "about z: h b^3/12"
+        );
+        assert!((p.rho_iz - 3.0 * 8.0 / 12.0).abs() < 1e-12);
+        let j = 2.0 * (1.0 / 3.0 - 0.21 * 0.5 * (1.0 - 1.0 / (12.0 * 16.0)));
+        assert!((p.gj - j).abs() < 1e-12);
+        // square: the classic 0.1406 a^4 within the series' accuracy
+        assert!((rect_torsion(1.0, 1.0) - 0.1406).abs() < 3e-4);
+        assert!((rect_torsion(1.0, 10.0) - rect_torsion(10.0, 1.0)).abs() < 1e-12);
+
+        let e = fails(&text(
+            "shape = \"tube\"\nouter_diameter = 1\ninner_diameter = 1",
+        ));
+        assert_eq!(e.field.as_deref(), Some("sections.s.inner_diameter"));
+        let e = fails(&text("shape = \"circle\"\ndiameter = 1\nEA = 3"));
+        assert_eq!(e.field.as_deref(), Some("sections.s.EA"));
+        let e = fails(&text("shape = \"circle\"\nwidth = 1"));
+        assert_eq!(e.field.as_deref(), Some("sections.s.width"));
+        let e = fails(&text("shape = \"rectangle\"\nwidth = 1"));
+        assert_eq!(e.field.as_deref(), Some("sections.s.height"));
+    }
+
+    #[test]
+    fn body_with_driven_rotation_and_hinged_beam() {
+        let m = compile(&with_beam(
+            "[parameters]\nw = 2\n\
+             [[bodies]]\nname = \"hub\"\nposition = [0, 0, 0]\naxes = [[0, 1, 0], [-1, 0, 0]]\nmass = 3\ninertia = [1, 2, 3]\n\
+             [[bodies.dofs]]\ntype = \"translation\"\naxis = [0, 0, 2]\ninitial = 0.5\n\
+             [[bodies.dofs]]\ntype = \"rotation\"\naxis = [0, 0, 1]\ndrive = \"w*t^2\"\n\
+             [[joints]]\nname = \"flap\"\nnode = \"a\"\nbody = \"hub\"\ntype = \"hinge\"\naxis = [0, 1, 0]\nstiffness = 5\ninitial_rate = 0.25\n\
+             [[sensors]]\nname = \"h\"\ntype = \"hinge\"\njoint = \"flap\"\n",
+        ));
+        // node dofs: b (6) and bm:1 (6); then hub's two; then the hinge angle
+        assert_eq!(m.dofs.len(), 15);
+        assert_eq!(m.dofs[12].name, "hub.dofs[0]");
+        assert_eq!(m.dofs[12].q0, 0.5);
+        assert!(matches!(m.dofs[13].mode, DofMode::Driven(_)));
+        assert_eq!(m.dofs[13].eq, None);
+        assert_eq!(m.dofs[14].name, "flap.angle");
+        assert_eq!(m.dofs[14].eq, Some(13));
+        assert_eq!(m.dofs[14].v0, 0.25);
+        assert_eq!(m.n_eq, 14);
+        let body = &m.bodies[0];
+        assert_eq!(
+            body.inertia,
+            [[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0]]
+        );
+        assert_eq!(
+            body.chain,
+            vec![
+                ChainLink::Translate {
+                    dof: 12,
+                    dir: [0.0, 0.0, 1.0]
+                },
+                ChainLink::RotateFixedAxis {
+                    dof: 13,
+                    axis: [0.0, 0.0, 1.0]
+                },
+            ]
+        );
+        assert_eq!(col(&body.r0, 0), [0.0, 1.0, 0.0]);
+        assert_eq!(col(&body.r0, 2), [0.0, 0.0, 1.0]);
+        let h = &m.hinges[0];
+        assert_eq!(h.dof, 14);
+        assert_eq!(h.stiffness, 5.0);
+        // global y is the body's x axis
+        assert!(close(h.axis_local, [1.0, 0.0, 0.0], 1e-15));
+        match &m.node_kin[0] {
+            NodeKin::OnBody {
+                body: Some(0),
+                hinge: Some(0),
+                s,
+                r_rel,
+            } => {
+                assert_eq!(*s, [0.0; 3]);
+                assert_eq!(
+                    mat_mul(&body.r0, r_rel),
+                    I3,
+                    "initial node rotation is identity"
+                );
+            }
+            k => panic!("{k:?}"),
+        }
+        assert_eq!(m.sensors[0].kind, SensorKind::HingeAngle { hinge: 0 });
+        if let DofMode::Driven(f) = &m.dofs[13].mode {
+            assert_eq!(f.eval(1.5), [4.5, 6.0, 4.0]);
+        }
+    }
+
+    #[test]
+    fn free_rotation_body_and_node_to_node_hinge() {
+        let m = compile(&with_beam(
+            "[[nodes]]\nname = \"c\"\nposition = [2, 0, 0]\n\
+             [[bodies]]\nname = \"sat\"\nposition = [1, 1, 1]\nmass = 1\ninertia = [[2, 0.1, 0], [0.1, 2, 0], [0, 0, 1]]\n\
+             [[bodies.dofs]]\ntype = \"free_rotation\"\ninitial_rate = [0, 0, 3]\n\
+             [[joints]]\nname = \"j\"\nnode = \"c\"\nto_node = \"b\"\ntype = \"hinge\"\naxis = [0, 0, 5]\n\
+             [[joints]]\nname = \"g\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n",
+        ));
+        assert_eq!(m.node_names, ["a", "b", "c", "bm:1"]);
+        assert!(matches!(
+            m.node_kin[2],
+            NodeKin::OnNode {
+                master: 1,
+                hinge: 0,
+                r_rel: I3
+            }
+        ));
+        assert!(matches!(
+            m.node_kin[0],
+            NodeKin::OnBody {
+                body: None,
+                hinge: None,
+                s: [0.0, 0.0, 0.0],
+                r_rel: I3
+            }
+        ));
+        assert_eq!(m.hinges[0].axis_local, [0.0, 0.0, 1.0]);
+        // b and bm:1 free (12 dofs, spins 0 and 1), then the body's spin, then the hinge
+        assert_eq!(m.spins.len(), 3);
+        assert_eq!(m.spins[2].dofs, [12, 13, 14]);
+        assert_eq!(m.spins[2].omega0, [0.0, 0.0, 3.0]);
+        assert_eq!(
+            m.bodies[0].chain[1],
+            ChainLink::SpinComponent {
+                dof: 13,
+                spin: 2,
+                k: 1
+            }
+        );
+        assert_eq!(m.hinges[0].dof, 15);
+        assert_eq!(m.n_eq, 16);
+    }
+
+    #[test]
+    fn joint_and_body_errors() {
+        let e = fails(&with_beam(
+            "[[nodes]]\nname = \"c\"\nposition = [2, 0, 1e-3]\n\
+             [[joints]]\nname = \"j\"\nnode = \"c\"\nto_node = \"b\"\ntype = \"hinge\"\naxis = [0, 0, 1]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("joints[0].to_node"), "{e}");
+        let e = fails(&with_beam(
+            "[[nodes]]\nname = \"c\"\nposition = [2, 0, 0]\n\
+             [[joints]]\nname = \"j\"\nnode = \"c\"\nto_node = \"b\"\ntype = \"hinge\"\naxis = [0, 0, 1]\n\
+             [[joints]]\nname = \"k\"\nnode = \"b\"\nto_node = \"c\"\ntype = \"hinge\"\naxis = [0, 0, 1]\n",
+        ));
+        assert!(e.message.contains("cycle"), "{e}");
+        let e = fails(&with_beam(
+            "[[supports]]\nnode = \"a\"\ntype = \"clamped\"\n\
+             [[joints]]\nname = \"j\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("joints[0].node"));
+        let e = fails(&with_beam(
+            "[[joints]]\nname = \"j\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n\
+             [[joints]]\nname = \"k\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n",
+        ));
+        assert!(e.message.contains("already has joint"), "{e}");
+        let e = fails(&with_beam(
+            "[[joints]]\nname = \"j\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\naxis = [1, 0, 0]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("joints[0].axis"));
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\nmass = 1\n\
+             [[bodies.dofs]]\ntype = \"rotation\"\naxis = [0, 0, 1]\n\
+             [[bodies.dofs]]\ntype = \"translation\"\naxis = [0, 0, 1]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("bodies[0].dofs[1].type"));
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\n[[bodies.dofs]]\ntype = \"rotation\"\naxis = [0, 0, 1]\ndrive = \"t\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("bodies[0].mass"));
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\nmass = 1\ninertia = [[1, 2, 0], [0, 1, 0], [0, 0, 1]]\n",
+        ));
+        assert!(e.message.contains("not symmetric"), "{e}");
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\nmass = 1\n[[bodies.dofs]]\ntype = \"translation\"\naxis = [1, 0, 0]\ndrive = \"t\"\ninitial = 1\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("bodies[0].dofs[0].initial"));
+    }
+
+    #[test]
+    fn sensor_and_beam_errors() {
+        let e = fails(&with_beam("[[sensors]]\nname = \"s\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.5\ncomponent = \"Mx\"\n"));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].component"));
+        let e = fails(&with_beam(
+            "[[sensors]]\nname = \"s\"\ntype = \"section\"\nbeam = \"bm\"\nat = 1.5\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].at"));
+        let e = fails(&with_beam(
+            "[[sensors]]\nname = \"s\"\ntype = \"node\"\nnode = \"a\"\nbeam = \"bm\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].beam"));
+        let e = fails(&with_beam("[[sensors]]\nname = \"s\"\ntype = \"node\"\n"));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].node"));
+        let e = fails(&with_beam("[[sensors]]\nname = \"s\"\ntype = \"energy\"\n[[sensors]]\nname = \"s\"\ntype = \"energy\"\n"));
+        assert!(e.message.contains("duplicate sensor"), "{e}");
+        let e = fails(&with_beam(
+            "[[sensors]]\nname = \"s\"\ntype = \"node\"\nnode = \"nowhere\"\n",
+        ));
+        assert!(e.message.contains("`nowhere`"), "{e}");
+        let e = fails(&with_beam(
+            "[[loads]]\nnode = \"bm:9\"\nforce = [1, 0, 0]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("loads[0].node"));
+        let e = fails(&with_beam("[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 1\nsection = \"s\"\norientation = [3, 0, 0]\n"));
+        assert_eq!(e.field.as_deref(), Some("beams[1].orientation"));
+        let e = fails(&with_beam(
+            "[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 2.5\nsection = \"s\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("beams[1].elements"));
+        let e = fails(&with_beam("[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 1\nsection = \"s\"\narc_center = [0.5, 5, 0]\n"));
+        assert_eq!(e.field.as_deref(), Some("beams[1].arc_center"));
+        assert!(e.message.contains("equidistant"), "{e}");
+        let e = fails(&with_beam("[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 3\nsection = \"s\"\narc_center = [1, 0, 0]\n"));
+        assert!(e.message.contains("collinear"), "{e}");
+        let e = fails(&with_beam(
+            "[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"a\"\nelements = 3\nsection = \"s\"\n",
+        ));
+        assert!(e.message.contains("zero-length"), "{e}");
+    }
+
+    #[test]
+    fn section_sensor_snaps_to_element_ends_and_midpoints() {
+        let m = compile(&with_beam(
+            "[[sensors]]\nname = \"s0\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.2\n\
+             [[sensors]]\nname = \"s1\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.45\n\
+             [[sensors]]\nname = \"s2\"\ntype = \"section\"\nbeam = \"bm\"\nat = 1\n\
+             [[sensors]]\nname = \"d\"\ntype = \"direction\"\nnode = \"b\"\ndirection = [0, 2, 0]\n\
+             [[sensors]]\nname = \"e\"\ntype = \"energy\"\n",
+        ));
+        let kinds: Vec<_> = m.sensors.iter().map(|s| s.kind.clone()).collect();
+        assert_eq!(
+            kinds[0],
+            SensorKind::Section {
+                element: 0,
+                xi: 0.5
+            }
+        );
+        assert_eq!(
+            kinds[1],
+            SensorKind::Section {
+                element: 1,
+                xi: 0.0
+            }
+        );
+        assert_eq!(
+            kinds[2],
+            SensorKind::Section {
+                element: 1,
+                xi: 1.0
+            }
+        );
+        assert_eq!(
+            kinds[3],
+            SensorKind::NodeDirection {
+                node: 1,
+                dir: [0.0, 1.0, 0.0]
+            }
+        );
+        assert_eq!(kinds[4], SensorKind::Energy);
+        assert_eq!(m.sensor_index("e"), Some(4));
     }
 }
