@@ -9,8 +9,6 @@ use std::collections::HashMap;
 use std::ops::Range;
 use std::path::Path;
 
-use toml::Spanned;
-
 use super::error::ModelError;
 use super::expr::{self, TimeFunction};
 use super::spec::{self, *};

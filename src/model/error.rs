@@ -43,11 +43,12 @@ impl ModelError {
         field: impl Into<String>,
         message: impl fmt::Display,
     ) -> ModelError {
-        let (line, column) = line_col(text, span.start);
+        // 0..0 is how spec::Spanned marks a value toml gave no position for
+        let pos = (span != (0..0)).then(|| line_col(text, span.start));
         ModelError {
             file: file.to_string(),
-            line: Some(line),
-            column: Some(column),
+            line: pos.map(|p| p.0),
+            column: pos.map(|p| p.1),
             field: Some(field.into()),
             message: message.to_string(),
         }

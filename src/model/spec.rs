@@ -7,11 +7,117 @@
 use std::fmt;
 use std::ops::Range;
 
-use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde::de::{
+    self, DeserializeSeed, Deserializer, IntoDeserializer, MapAccess, SeqAccess, Visitor,
+};
 use serde::Deserialize;
-use toml::Spanned;
 
 use super::error::ModelError;
+
+/// A value with its byte range in the file, like `toml::Spanned`, but also accepting
+/// values toml keeps no span for (tables made implicitly by dotted keys such as
+/// `[sections.main]`'s `sections`, or `solver.dt = 1` at the top level), which
+/// `toml::Spanned` rejects with a confusing message. Those get the empty span `0..0`,
+/// which error reporting treats as "position unknown".
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spanned<T> {
+    span: Range<usize>,
+    value: T,
+}
+
+impl<T> Spanned<T> {
+    pub fn new(span: Range<usize>, value: T) -> Spanned<T> {
+        Spanned { span, value }
+    }
+    pub fn span(&self) -> Range<usize> {
+        self.span.clone()
+    }
+    pub fn get_ref(&self) -> &T {
+        &self.value
+    }
+    pub fn into_inner(self) -> T {
+        self.value
+    }
+}
+
+// the protocol toml uses to hand out spans (serde_spanned 0.6, as used by toml 0.8)
+const SPANNED_NAME: &str = "$__serde_spanned_private_Spanned";
+const SPANNED_START: &str = "$__serde_spanned_private_start";
+const SPANNED_END: &str = "$__serde_spanned_private_end";
+const SPANNED_VALUE: &str = "$__serde_spanned_private_value";
+const SPANNED_FIELDS: [&str; 3] = [SPANNED_START, SPANNED_END, SPANNED_VALUE];
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for Spanned<T> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Spanned<T>, D::Error> {
+        d.deserialize_struct(
+            SPANNED_NAME,
+            &SPANNED_FIELDS,
+            SpannedVisitor(std::marker::PhantomData),
+        )
+    }
+}
+
+struct SpannedVisitor<T>(std::marker::PhantomData<T>);
+
+impl<'de, T: Deserialize<'de>> Visitor<'de> for SpannedVisitor<T> {
+    type Value = Spanned<T>;
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a value")
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Spanned<T>, A::Error> {
+        let first: Option<String> = map.next_key()?;
+        if first.as_deref() != Some(SPANNED_START) {
+            // an unspanned table: `first` is its first real key
+            let value =
+                T::deserialize(de::value::MapAccessDeserializer::new(Replay { first, map }))?;
+            return Ok(Spanned::new(0..0, value));
+        }
+        let start: usize = map.next_value()?;
+        let mut end = None;
+        let mut value = None;
+        while let Some(k) = map.next_key::<String>()? {
+            match k.as_str() {
+                SPANNED_END => end = Some(map.next_value::<usize>()?),
+                SPANNED_VALUE => value = Some(map.next_value::<T>()?),
+                other => return Err(de::Error::unknown_field(other, &SPANNED_FIELDS)),
+            }
+        }
+        match (end, value) {
+            (Some(end), Some(value)) => Ok(Spanned::new(start..end, value)),
+            _ => Err(de::Error::custom("incomplete span information")),
+        }
+    }
+    // keys arrive as plain strings when toml has no span for them
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<Spanned<T>, E> {
+        let de: de::value::StrDeserializer<E> = v.into_deserializer();
+        T::deserialize(de).map(|x| Spanned::new(0..0, x))
+    }
+    fn visit_string<E: de::Error>(self, v: String) -> Result<Spanned<T>, E> {
+        self.visit_str(&v)
+    }
+}
+
+/// A map access with its first key already taken out and put back in front.
+struct Replay<A> {
+    first: Option<String>,
+    map: A,
+}
+
+impl<'de, A: MapAccess<'de>> MapAccess<'de> for Replay<A> {
+    type Error = A::Error;
+    fn next_key_seed<K: DeserializeSeed<'de>>(
+        &mut self,
+        seed: K,
+    ) -> Result<Option<K::Value>, A::Error> {
+        match self.first.take() {
+            Some(k) => seed.deserialize(k.into_deserializer()).map(Some),
+            None => self.map.next_key_seed(seed),
+        }
+    }
+    fn next_value_seed<V: DeserializeSeed<'de>>(&mut self, seed: V) -> Result<V::Value, A::Error> {
+        self.map.next_value_seed(seed)
+    }
+}
 
 /// A number, or an expression string over the parameters.
 #[derive(Clone, Debug, PartialEq)]
@@ -422,18 +528,19 @@ fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> ModelError {
     };
     let field = match toml::from_str::<Spanned<Tree>>(text) {
         Ok(tree) => {
-            let mut path = Vec::new();
-            locate(&tree, &span, &mut path);
-            let mut field = path.join("");
-            // serde reports a missing key at the table that lacks it
-            if let Some(missing) = message
-                .strip_prefix("missing field `")
-                .and_then(|m| m.split('`').next())
-            {
+            let joined = locate(&tree, &span).unwrap_or_default().join("");
+            let mut field = joined.trim_start_matches('.').to_string();
+            // serde reports a missing key at the table that lacks it, an unknown key at
+            // the key itself (which the tree has no span for)
+            let named = ["missing field `", "unknown field `"]
+                .iter()
+                .find_map(|p| message.strip_prefix(p))
+                .and_then(|m| m.split('`').next());
+            if let Some(name) = named {
                 if !field.is_empty() {
                     field.push('.');
                 }
-                field += missing;
+                field += name;
             }
             field
         }
@@ -448,7 +555,7 @@ fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> ModelError {
 
 /// Any TOML value with spans, only to map an error span back to a key path.
 enum Tree {
-    Table(Vec<(Spanned<String>, Spanned<Tree>)>),
+    Table(Vec<(String, Spanned<Tree>)>),
     Array(Vec<Spanned<Tree>>),
     Leaf,
 }
@@ -495,37 +602,47 @@ impl<'de> Deserialize<'de> for Tree {
     }
 }
 
-fn contains(outer: &Range<usize>, inner: &Range<usize>) -> bool {
-    outer.start <= inner.start && inner.end <= outer.end
+/// Path pieces (`key`, `.key`, `[i]`) to the innermost value whose span contains `span`,
+/// looking through values without a span; None if nothing below `node` contains it.
+fn locate(node: &Spanned<Tree>, span: &Range<usize>) -> Option<Vec<String>> {
+    let children: Vec<(String, &Spanned<Tree>)> = match node.get_ref() {
+        Tree::Table(entries) => entries.iter().map(|(k, v)| (k.clone(), v)).collect(),
+        Tree::Array(items) => items
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (format!("[{i}]"), v))
+            .collect(),
+        Tree::Leaf => Vec::new(),
+    };
+    for (label, child) in children {
+        if let Some(mut path) = locate(child, span) {
+            let dot = if label.starts_with('[') || label.is_empty() {
+                ""
+            } else {
+                "."
+            };
+            path.insert(0, format!("{dot}{label}"));
+            return Some(path);
+        }
+    }
+    let own = extent(node)?;
+    (own.start <= span.start && span.end <= own.end).then(Vec::new)
 }
 
-/// Path (as `.key` and `[i]` pieces, first without the dot) of the innermost value or
-/// key whose span contains `span`.
-fn locate(node: &Spanned<Tree>, span: &Range<usize>, path: &mut Vec<String>) {
-    let sep = |path: &Vec<String>| if path.is_empty() { "" } else { "." };
-    match node.get_ref() {
-        Tree::Table(entries) => {
-            for (k, v) in entries {
-                if contains(&k.span(), span) || contains(&v.span(), span) {
-                    path.push(format!("{}{}", sep(path), k.get_ref()));
-                    if contains(&v.span(), span) {
-                        locate(v, span, path);
-                    }
-                    return;
-                }
-            }
-        }
-        Tree::Array(items) => {
-            for (i, v) in items.iter().enumerate() {
-                if contains(&v.span(), span) {
-                    path.push(format!("[{i}]"));
-                    locate(v, span, path);
-                    return;
-                }
-            }
-        }
-        Tree::Leaf => {}
+/// A node's span, or for a table made by dotted keys the range its values cover.
+fn extent(node: &Spanned<Tree>) -> Option<Range<usize>> {
+    if node.span() != (0..0) {
+        return Some(node.span());
     }
+    let children: Vec<&Spanned<Tree>> = match node.get_ref() {
+        Tree::Table(entries) => entries.iter().map(|(_, v)| v).collect(),
+        Tree::Array(items) => items.iter().collect(),
+        Tree::Leaf => Vec::new(),
+    };
+    children
+        .into_iter()
+        .filter_map(extent)
+        .reduce(|a, b| a.start.min(b.start)..a.end.max(b.end))
 }
 
 /// Best guess at the field of a TOML syntax error: the enclosing table header and the key
@@ -613,6 +730,13 @@ mod tests {
         let e = err("[solver]\ndt = \n");
         assert_eq!(e.line, Some(2));
         assert_eq!(e.field.as_deref(), Some("solver.dt"));
+
+        // tables made by dotted keys have no span of their own
+        let e = err("[sections]\nmain.EA = 1\nmain.foo = 2\n");
+        assert_eq!(e.field.as_deref(), Some("sections.main.foo"));
+        assert_eq!(e.line, Some(3));
+        let s = parse("solver.dt = 0.5\n[sections]\nmain.EA = 1\n", "m.toml").unwrap();
+        assert!(s.solver.is_some() && s.sections.0[0].0.get_ref() == "main");
 
         let e = err("[[supports]]\nnode = \"a\"\ntype = \"clampd\"\n");
         assert_eq!(e.field.as_deref(), Some("supports[0].type"));
