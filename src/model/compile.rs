@@ -89,7 +89,7 @@ struct BodyDraft {
 enum DofDraft {
     Translate(Vec3, Dof),
     Rotate(Vec3, Dof),
-    FreeRotation([Dof; 3], Vec3),
+    FreeRotation(Box<[Dof; 3]>, Vec3),
 }
 
 fn dof(name: String, mode: DofMode, q0: f64, v0: f64) -> Dof {
@@ -391,7 +391,7 @@ impl Compiler<'_> {
                     }
                     DofDraft::FreeRotation(qs, omega0) => {
                         let d0 = dofs.len();
-                        dofs.extend(qs);
+                        dofs.extend(*qs);
                         spins.push(Spin {
                             dofs: [d0, d0 + 1, d0 + 2],
                             omega0,
@@ -498,9 +498,26 @@ impl Compiler<'_> {
             let v = match overrides.iter().rev().find(|(n, _)| n == name) {
                 Some((_, v)) => *v,
                 None => match value.get_ref() {
-                    ParamValue::Plain(n) => self.num_at(n, value.span(), &f)?,
-                    ParamValue::Full(t) => self.num(&t.value, &format!("{f}.value"))?,
-                },
+                    ParamValue::Plain(n) => self.num_at(n, value.span(), &f),
+                    ParamValue::Full(t) => self.num(&t.value, &format!("{f}.value")),
+                }
+                .map_err(|mut e| {
+                    let later = spec
+                        .parameters
+                        .0
+                        .iter()
+                        .map(|(k, _)| k.get_ref())
+                        .find(|k| {
+                            !self.params.iter().any(|(n, _)| n == *k)
+                                && e.message.contains(&format!("undefined parameter `{k}`"))
+                        });
+                    if let Some(k) = later {
+                        e.message += &format!(
+                            " (`{k}` is defined later: a parameter can only use those before it)"
+                        );
+                    }
+                    e
+                })?,
             };
             self.params.push((name.clone(), v));
         }
@@ -793,7 +810,7 @@ impl Compiler<'_> {
                             },
                         };
                         let qs = ["x", "y", "z"].map(|c| free_dof(format!("{qname}.{c}")));
-                        DofDraft::FreeRotation(qs, omega0)
+                        DofDraft::FreeRotation(Box::new(qs), omega0)
                     }
                 });
             }
@@ -905,12 +922,11 @@ impl Compiler<'_> {
             }
         }
         let big = m.iter().flatten().fold(0.0f64, |a, x| a.max(x.abs()));
-        for i in 0..3 {
-            for j in 0..i {
-                if (m[i][j] - m[j][i]).abs() > 1e-12 * big {
-                    return Err(self.err(v.span(), f, "inertia not symmetric"));
-                }
-            }
+        let asymmetric = [(0, 1), (0, 2), (1, 2)]
+            .iter()
+            .any(|&(i, j)| (m[i][j] - m[j][i]).abs() > 1e-12 * big);
+        if asymmetric {
+            return Err(self.err(v.span(), f, "inertia not symmetric"));
         }
         // Sylvester's criterion
         let d1 = m[0][0];

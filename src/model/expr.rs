@@ -78,7 +78,12 @@ where
 }
 
 fn undefined(name: &str, text: &str) -> String {
-    format!("undefined parameter `{name}` in expression `{text}`")
+    let hint = if name == TIME {
+        " (the time `t` exists only in drive expressions)"
+    } else {
+        ""
+    };
+    format!("undefined parameter `{name}` in expression `{text}`{hint}")
 }
 
 /// Evaluates an expression over the parameters (and the built-in constants).
@@ -423,12 +428,9 @@ pub struct TimeFunction {
 #[derive(Clone, Debug)]
 enum Kind {
     Constant(f64),
-    Symbolic {
-        q: Expr<f64>,
-        dq: Expr<f64>,
-        ddq: Expr<f64>,
-    },
-    Jet(Expr<Jet>),
+    /// q, dq/dt, d²q/dt² (boxed: exmex expressions keep large inline buffers)
+    Symbolic(Box<[Expr<f64>; 3]>),
+    Jet(Box<Expr<Jet>>),
 }
 
 /// Replaces every name except `t` by its value, so the stored expressions have at most the
@@ -471,8 +473,8 @@ impl TimeFunction {
                 .partial(0)
                 .and_then(|dq| Ok((dq.clone().partial(0)?, dq)));
             match symbolic {
-                Ok((ddq, dq)) => Kind::Symbolic { q, dq, ddq },
-                Err(_) => Kind::Jet(substitute(parse::<Jet>(source)?, source, params)?),
+                Ok((ddq, dq)) => Kind::Symbolic(Box::new([q, dq, ddq])),
+                Err(_) => Kind::Jet(Box::new(substitute(parse::<Jet>(source)?, source, params)?)),
             }
         };
         let f = TimeFunction {
@@ -505,10 +507,9 @@ impl TimeFunction {
     pub fn eval(&self, t: f64) -> [f64; 3] {
         match &self.kind {
             Kind::Constant(v) => [*v, 0.0, 0.0],
-            Kind::Symbolic { q, dq, ddq } => {
-                let at = |e: &Expr<f64>| e.eval_relaxed(&[t]).unwrap_or(f64::NAN);
-                [at(q), at(dq), at(ddq)]
-            }
+            Kind::Symbolic(e) => e
+                .each_ref()
+                .map(|e| e.eval_relaxed(&[t]).unwrap_or(f64::NAN)),
             Kind::Jet(e) => match e.eval_relaxed(&[Jet::variable(t)]) {
                 Ok(j) => [j.v, j.d1, j.d2],
                 Err(_) => [f64::NAN; 3],
@@ -521,7 +522,7 @@ impl TimeFunction {
         let e = substitute(parse::<Jet>(source).unwrap(), source, params).unwrap();
         TimeFunction {
             source: source.into(),
-            kind: Kind::Jet(e),
+            kind: Kind::Jet(Box::new(e)),
         }
     }
 }
@@ -671,8 +672,9 @@ mod tests {
     }
 
     #[test]
-    fn time_functions_can_be_shared_between_threads() {
+    fn time_functions_are_small_and_can_be_shared_between_threads() {
         fn is_send_sync<T: Send + Sync>() {}
         is_send_sync::<TimeFunction>();
+        assert!(std::mem::size_of::<TimeFunction>() <= 64);
     }
 }
