@@ -310,6 +310,26 @@ impl Compiler<'_> {
             })
             .sum();
         let hinge_dof0 = n_node_dofs + n_body_dofs;
+        // a node with dofs of its own but no element would make the system singular
+        let mut on_element = vec![false; node_names.len()];
+        for e in &elements {
+            on_element[e.n1] = true;
+            on_element[e.n2] = true;
+        }
+        for (i, n) in spec.nodes.iter().enumerate() {
+            let has_dofs = joint_of_node[i].is_none() && supports[i] != Some(SupportType::Clamped);
+            if has_dofs && !on_element[i] {
+                return Err(self.err(
+                    n.get_ref().name.span(),
+                    format!("nodes[{i}].name"),
+                    format!(
+                        "node `{}` is on no beam and not held by a support or joint: its dofs \
+                         would have neither stiffness nor mass",
+                        node_names[i]
+                    ),
+                ));
+            }
+        }
         for n in 0..node_names.len() {
             let kin = if let Some(j) = joint_of_node[n] {
                 let jd = &joints[j];
@@ -1826,6 +1846,10 @@ mod tests {
              [[joints]]\nname = \"k\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n",
         ));
         assert!(e.message.contains("already has joint"), "{e}");
+        let e = fails(&with_beam(
+            "[[nodes]]\nname = \"lone\"\nposition = [5, 5, 5]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("nodes[2].name"), "{e}");
         let e = fails(&with_beam(
             "[[joints]]\nname = \"j\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\naxis = [1, 0, 0]\n",
         ));

@@ -1,7 +1,7 @@
 //! Model files: spec (serde types, user vocabulary), expressions, compilation into the
 //! immutable [`Model`].
 
-mod compile;
+pub mod compile;
 mod error;
 pub mod expr;
 pub mod spec;
