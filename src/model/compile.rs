@@ -288,28 +288,6 @@ impl Compiler<'_> {
         for (j, jd) in joints.iter().enumerate() {
             joint_of_node[jd.node] = Some(j);
         }
-        let n_hinges = hinge_drafts.len();
-        let n_body_dofs: usize = bodies
-            .iter()
-            .map(|b| {
-                b.dofs
-                    .iter()
-                    .map(|d| match d {
-                        DofDraft::FreeRotation(..) => 3,
-                        _ => 1,
-                    })
-                    .sum::<usize>()
-            })
-            .sum();
-        let n_node_dofs: usize = (0..node_names.len())
-            .filter(|&n| joint_of_node[n].is_none())
-            .map(|n| match supports[n] {
-                Some(SupportType::Clamped) => 0,
-                Some(SupportType::Pinned) => 3,
-                _ => 6,
-            })
-            .sum();
-        let hinge_dof0 = n_node_dofs + n_body_dofs;
         // a node with dofs of its own but no element would make the system singular
         let mut on_element = vec![false; node_names.len()];
         for e in &elements {
@@ -429,8 +407,7 @@ impl Compiler<'_> {
             model_bodies.push(body);
         }
 
-        debug_assert_eq!(dofs.len(), hinge_dof0);
-        let mut hinges = Vec::with_capacity(n_hinges);
+        let mut hinges = Vec::with_capacity(hinge_drafts.len());
         for h in hinge_drafts {
             dofs.push(dof(format!("{}.angle", h.name), DofMode::Free, 0.0, h.v0));
             hinges.push(Hinge {
