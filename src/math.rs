@@ -185,13 +185,17 @@ mod tests {
     use super::*;
 
     #[test]
+    #[allow(clippy::approx_constant)] // 3.14159 is meant to be just below π, not π
     fn rot_log_inverts_rot_exp_over_the_whole_angle_range() {
         for &th in &[0.0, 1e-9, 1e-5, 0.3, 1.0, 2.5, 3.1, 3.14159] {
             let axis = normalize([0.3, -0.5, 0.8]);
             let phi = scale(axis, th);
             let back = rot_log(&rot_exp(phi));
             for k in 0..3 {
-                assert!((back[k] - phi[k]).abs() < 1e-9, "θ={th}: {back:?} vs {phi:?}");
+                assert!(
+                    (back[k] - phi[k]).abs() < 1e-9,
+                    "θ={th}: {back:?} vs {phi:?}"
+                );
             }
         }
     }

@@ -1,14 +1,680 @@
 //! Parameter expressions and time functions.
+//!
+//! Expressions are parsed by exmex with its float operators but without its built-in
+//! constants: `pi`, `PI`, `π`, `E`, `e`, `TAU`, `tau` are bound as ordinary names instead,
+//! so that a parameter of the same name (engineers write `E` for Young's modulus) takes
+//! precedence. Number literals may use exponents (`1e-3`), which exmex's default literal
+//! matcher does not accept.
+//!
+//! exmex precedence quirk worth knowing: unary minus binds tighter than `^`, so `-t^2`
+//! is `(-t)^2`; write `-(t^2)`.
+//!
+//! Drivers (`TimeFunction`) get exact first and second time derivatives: symbolically
+//! through exmex `partial` when every operator has a derivative rule there, otherwise
+//! (`abs`, `min`, `max`, `signum`, `floor`, `atan2`, ...) by forward-mode second-order
+//! automatic differentiation over the same parse tree ([`Jet`]). Both are exact up to
+//! round-off; at a kink of `abs`/`min`/`max` the derivatives of one side are returned (see
+//! [`Jet`]). This replaces the finite-difference fallback once planned: no driver is
+//! differentiated numerically.
+
+use std::f64::consts::{E, PI, TAU};
+use std::fmt::Debug;
+use std::marker::PhantomData;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::str::FromStr;
+
+use exmex::prelude::*;
+use exmex::{FloatOpsFactory, MakeOperators, MatchLiteral, Operator};
+
+exmex::literal_matcher_from_pattern!(SciMatcher, r"^([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?");
+
+/// exmex's float operators minus its constants (see the module docs).
+#[derive(Clone, Debug)]
+pub struct Ops<T>(PhantomData<T>);
+
+impl<T: Debug + exmex::num::Float> MakeOperators<T> for Ops<T> {
+    fn make<'a>() -> Vec<Operator<'a, T>> {
+        FloatOpsFactory::<T>::make()
+            .into_iter()
+            .filter(|op| op.constant().is_none())
+            .collect()
+    }
+}
+
+type Expr<T> = FlatEx<T, Ops<T>, SciMatcher>;
+
+/// Names every expression knows unless a parameter of the same name replaces them.
+pub const CONSTANTS: [(&str, f64); 7] = [
+    ("pi", PI),
+    ("PI", PI),
+    ("π", PI),
+    ("E", E),
+    ("e", E),
+    ("TAU", TAU),
+    ("tau", TAU),
+];
+
+/// The free variable of driver expressions; no parameter may take this name.
+pub const TIME: &str = "t";
+
+fn lookup(name: &str, params: &[(String, f64)]) -> Option<f64> {
+    params
+        .iter()
+        .rev()
+        .find(|(n, _)| n == name)
+        .map(|(_, v)| *v)
+        .or_else(|| CONSTANTS.iter().find(|(n, _)| *n == name).map(|(_, v)| *v))
+}
+
+fn parse<T>(text: &str) -> Result<Expr<T>, String>
+where
+    T: Clone + Debug + Default + FromStr + exmex::num::Float,
+    <T as FromStr>::Err: Debug,
+{
+    if text.trim().is_empty() {
+        return Err("empty expression".into());
+    }
+    Expr::<T>::parse(text).map_err(|e| format!("cannot parse expression `{text}`: {}", e.msg()))
+}
+
+fn undefined(name: &str, text: &str) -> String {
+    let hint = if name == TIME {
+        " (the time `t` exists only in drive expressions)"
+    } else {
+        ""
+    };
+    format!("undefined parameter `{name}` in expression `{text}`{hint}")
+}
+
+/// Evaluates an expression over the parameters (and the built-in constants).
+pub fn eval(text: &str, params: &[(String, f64)]) -> Result<f64, String> {
+    let expr = parse::<f64>(text)?;
+    let vals = expr
+        .var_names()
+        .iter()
+        .map(|n| lookup(n, params).ok_or_else(|| undefined(n, text)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let v = expr
+        .eval(&vals)
+        .map_err(|e| format!("cannot evaluate `{text}`: {}", e.msg()))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("expression `{text}` evaluates to {v}"))
+    }
+}
+
+/// Checks that `name` can be used as a parameter: an identifier that exmex reads as one
+/// variable, and not the time variable.
+pub fn check_param_name(name: &str) -> Result<(), String> {
+    let mut chars = name.chars();
+    let ident = chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !ident {
+        return Err(format!(
+            "parameter name `{name}` is not an identifier (letters, digits, `_`, not starting \
+             with a digit)"
+        ));
+    }
+    if name == TIME {
+        return Err(format!(
+            "`{TIME}` is reserved for the time in drive expressions"
+        ));
+    }
+    for op in Ops::<f64>::make() {
+        let r = op.repr();
+        if r == name {
+            return Err(format!("`{name}` is the name of a function"));
+        }
+        // exmex's tokenizer takes a binary operator's name even as the prefix of a longer
+        // word, so `max_load` would read as `max _load`
+        if op.has_bin() && r.chars().all(|c| c.is_ascii_alphanumeric()) && name.starts_with(r) {
+            return Err(format!(
+                "parameter names may not start with `{r}` (read as the function `{r}`)"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Value, first and second derivative of a function of one variable, carried through an
+/// expression by the chain rule (forward-mode automatic differentiation of order two).
+///
+/// Comparisons (`min`, `max`, `abs`) look at the value only; on a tie `min`/`max` take the
+/// second argument and `abs(0)` the positive branch, so a kink returns the derivatives of
+/// one side. Step functions (`signum`, `floor`, ...) have zero derivatives.
+#[derive(Clone, Copy, Debug, Default, PartialEq, PartialOrd)]
+pub struct Jet {
+    pub v: f64,
+    pub d1: f64,
+    pub d2: f64,
+}
+
+impl Jet {
+    pub fn constant(v: f64) -> Jet {
+        Jet {
+            v,
+            d1: 0.0,
+            d2: 0.0,
+        }
+    }
+    pub fn variable(v: f64) -> Jet {
+        Jet {
+            v,
+            d1: 1.0,
+            d2: 0.0,
+        }
+    }
+    /// f(self) given f, f', f'' at self.v
+    fn chain(self, f: f64, df: f64, ddf: f64) -> Jet {
+        // a constant argument must stay constant even where f' is infinite (sqrt(0))
+        if self.d1 == 0.0 && self.d2 == 0.0 {
+            return Jet::constant(f);
+        }
+        Jet {
+            v: f,
+            d1: df * self.d1,
+            d2: ddf * self.d1 * self.d1 + df * self.d2,
+        }
+    }
+    fn is_constant(&self) -> bool {
+        self.d1 == 0.0 && self.d2 == 0.0
+    }
+    fn pow_const(self, p: f64) -> Jet {
+        let x = self.v;
+        let df = if p == 0.0 { 0.0 } else { p * x.powf(p - 1.0) };
+        let ddf = if p == 0.0 || p == 1.0 {
+            0.0
+        } else {
+            p * (p - 1.0) * x.powf(p - 2.0)
+        };
+        self.chain(x.powf(p), df, ddf)
+    }
+}
+
+impl FromStr for Jet {
+    type Err = std::num::ParseFloatError;
+    fn from_str(s: &str) -> Result<Jet, Self::Err> {
+        s.parse::<f64>().map(Jet::constant)
+    }
+}
+
+impl Add for Jet {
+    type Output = Jet;
+    fn add(self, b: Jet) -> Jet {
+        Jet {
+            v: self.v + b.v,
+            d1: self.d1 + b.d1,
+            d2: self.d2 + b.d2,
+        }
+    }
+}
+impl Sub for Jet {
+    type Output = Jet;
+    fn sub(self, b: Jet) -> Jet {
+        Jet {
+            v: self.v - b.v,
+            d1: self.d1 - b.d1,
+            d2: self.d2 - b.d2,
+        }
+    }
+}
+impl Mul for Jet {
+    type Output = Jet;
+    fn mul(self, b: Jet) -> Jet {
+        Jet {
+            v: self.v * b.v,
+            d1: self.d1 * b.v + self.v * b.d1,
+            d2: self.d2 * b.v + 2.0 * self.d1 * b.d1 + self.v * b.d2,
+        }
+    }
+}
+impl Div for Jet {
+    type Output = Jet;
+    fn div(self, b: Jet) -> Jet {
+        let v = self.v / b.v;
+        let d1 = (self.d1 - v * b.d1) / b.v;
+        let d2 = (self.d2 - 2.0 * d1 * b.d1 - v * b.d2) / b.v;
+        Jet { v, d1, d2 }
+    }
+}
+impl Neg for Jet {
+    type Output = Jet;
+    fn neg(self) -> Jet {
+        Jet {
+            v: -self.v,
+            d1: -self.d1,
+            d2: -self.d2,
+        }
+    }
+}
+
+impl exmex::num::Num for Jet {
+    fn zero() -> Jet {
+        Jet::constant(0.0)
+    }
+    fn one() -> Jet {
+        Jet::constant(1.0)
+    }
+}
+
+impl exmex::num::Float for Jet {
+    fn from_f64(f: f64) -> Jet {
+        Jet::constant(f)
+    }
+    fn to_f64(self) -> f64 {
+        self.v
+    }
+    fn from_f32(f: f32) -> Jet {
+        Jet::constant(f as f64)
+    }
+    fn from_int<I: exmex::num::PrimInt>(n: I) -> Jet {
+        Jet::constant(n.to_i64() as f64)
+    }
+    fn log2(self) -> Jet {
+        self.ln() / Jet::constant(std::f64::consts::LN_2)
+    }
+    fn log10(self) -> Jet {
+        self.ln() / Jet::constant(std::f64::consts::LN_10)
+    }
+    fn abs(self) -> Jet {
+        if self.v < 0.0 {
+            -self
+        } else {
+            self
+        }
+    }
+    fn sin(self) -> Jet {
+        let (s, c) = self.v.sin_cos();
+        self.chain(s, c, -s)
+    }
+    fn cos(self) -> Jet {
+        let (s, c) = self.v.sin_cos();
+        self.chain(c, -s, -c)
+    }
+    fn tan(self) -> Jet {
+        let t = self.v.tan();
+        let dt = 1.0 + t * t;
+        self.chain(t, dt, 2.0 * t * dt)
+    }
+    fn asin(self) -> Jet {
+        let w = 1.0 - self.v * self.v;
+        self.chain(self.v.asin(), 1.0 / w.sqrt(), self.v / (w * w.sqrt()))
+    }
+    fn acos(self) -> Jet {
+        let w = 1.0 - self.v * self.v;
+        self.chain(self.v.acos(), -1.0 / w.sqrt(), -self.v / (w * w.sqrt()))
+    }
+    fn atan(self) -> Jet {
+        let w = 1.0 + self.v * self.v;
+        self.chain(self.v.atan(), 1.0 / w, -2.0 * self.v / (w * w))
+    }
+    fn sqrt(self) -> Jet {
+        let s = self.v.sqrt();
+        self.chain(s, 0.5 / s, -0.25 / (s * s * s))
+    }
+    fn signum(self) -> Jet {
+        Jet::constant(self.v.signum())
+    }
+    fn sinh(self) -> Jet {
+        let (s, c) = (self.v.sinh(), self.v.cosh());
+        self.chain(s, c, s)
+    }
+    fn cosh(self) -> Jet {
+        let (s, c) = (self.v.sinh(), self.v.cosh());
+        self.chain(c, s, c)
+    }
+    fn tanh(self) -> Jet {
+        let t = self.v.tanh();
+        let dt = 1.0 - t * t;
+        self.chain(t, dt, -2.0 * t * dt)
+    }
+    fn asinh(self) -> Jet {
+        let w = 1.0 + self.v * self.v;
+        self.chain(self.v.asinh(), 1.0 / w.sqrt(), -self.v / (w * w.sqrt()))
+    }
+    fn acosh(self) -> Jet {
+        let w = self.v * self.v - 1.0;
+        self.chain(self.v.acosh(), 1.0 / w.sqrt(), -self.v / (w * w.sqrt()))
+    }
+    fn atanh(self) -> Jet {
+        let w = 1.0 - self.v * self.v;
+        self.chain(self.v.atanh(), 1.0 / w, 2.0 * self.v / (w * w))
+    }
+    fn floor(self) -> Jet {
+        Jet::constant(self.v.floor())
+    }
+    fn ceil(self) -> Jet {
+        Jet::constant(self.v.ceil())
+    }
+    fn round(self) -> Jet {
+        Jet::constant(self.v.round())
+    }
+    fn trunc(self) -> Jet {
+        Jet::constant(self.v.trunc())
+    }
+    fn fract(self) -> Jet {
+        Jet {
+            v: self.v.fract(),
+            ..self
+        }
+    }
+    fn exp(self) -> Jet {
+        let e = self.v.exp();
+        self.chain(e, e, e)
+    }
+    fn cbrt(self) -> Jet {
+        let c = self.v.cbrt();
+        self.chain(c, 1.0 / (3.0 * c * c), -2.0 / (9.0 * c.powi(5)))
+    }
+    fn ln(self) -> Jet {
+        self.chain(self.v.ln(), 1.0 / self.v, -1.0 / (self.v * self.v))
+    }
+    fn is_nan(self) -> bool {
+        self.v.is_nan() || self.d1.is_nan() || self.d2.is_nan()
+    }
+    fn powf(self, n: Jet) -> Jet {
+        if n.is_constant() {
+            self.pow_const(n.v)
+        } else {
+            // a varying exponent needs a positive base anyway
+            (n * self.ln()).exp()
+        }
+    }
+    fn log(self, base: Jet) -> Jet {
+        self.ln() / base.ln()
+    }
+    fn min(self, n: Jet) -> Jet {
+        if self.v < n.v {
+            self
+        } else {
+            n
+        }
+    }
+    fn max(self, n: Jet) -> Jet {
+        if self.v > n.v {
+            self
+        } else {
+            n
+        }
+    }
+    fn atan2(self, x: Jet) -> Jet {
+        // atan2(y, x) = angle of (x, y): θ' = (x y' − y x')/r², differentiated once more
+        let y = self;
+        let r2 = x.v * x.v + y.v * y.v;
+        let num = x.v * y.d1 - y.v * x.d1;
+        let dnum = x.v * y.d2 - y.v * x.d2;
+        let dr2 = 2.0 * (x.v * x.d1 + y.v * y.d1);
+        Jet {
+            v: y.v.atan2(x.v),
+            d1: num / r2,
+            d2: (dnum * r2 - num * dr2) / (r2 * r2),
+        }
+    }
+    fn powi(self, n: i32) -> Jet {
+        self.pow_const(n as f64)
+    }
+}
 
 /// A prescribed coordinate q(t) with exact first and second derivatives.
 #[derive(Clone, Debug)]
 pub struct TimeFunction {
     pub source: String,
+    kind: Kind,
+}
+
+#[derive(Clone, Debug)]
+enum Kind {
+    Constant(f64),
+    /// q, dq/dt, d²q/dt² (boxed: exmex expressions keep large inline buffers)
+    Symbolic(Box<[Expr<f64>; 3]>),
+    Jet(Box<Expr<Jet>>),
+}
+
+/// Replaces every name except `t` by its value, so the stored expressions have at most the
+/// one variable `t` and evaluate without building a variable vector.
+fn substitute<T>(expr: Expr<T>, text: &str, params: &[(String, f64)]) -> Result<Expr<T>, String>
+where
+    T: Clone + Debug + Default + FromStr + exmex::num::Float,
+    <T as FromStr>::Err: Debug,
+{
+    if let Some(n) = expr
+        .var_names()
+        .iter()
+        .find(|n| *n != TIME && lookup(n, params).is_none())
+    {
+        return Err(undefined(n, text));
+    }
+    let mut sub = |name: &str| {
+        if name == TIME {
+            None
+        } else {
+            lookup(name, params).map(|v| Expr::<T>::from_num(T::from_f64(v)))
+        }
+    };
+    expr.subs(&mut sub)
+        .map_err(|e| format!("cannot evaluate `{text}`: {}", e.msg()))
 }
 
 impl TimeFunction {
-    /// value, rate and acceleration at time `t`
-    pub fn eval(&self, _t: f64) -> [f64; 3] {
-        [0.0; 3]
+    /// A driver from an expression in `t` and the parameters.
+    pub fn new(source: &str, params: &[(String, f64)]) -> Result<TimeFunction, String> {
+        let q = substitute(parse::<f64>(source)?, source, params)?;
+        let kind = if q.var_names().is_empty() {
+            let v = q
+                .eval(&[])
+                .map_err(|e| format!("cannot evaluate `{source}`: {}", e.msg()))?;
+            Kind::Constant(v)
+        } else {
+            let symbolic = q
+                .clone()
+                .partial(0)
+                .and_then(|dq| Ok((dq.clone().partial(0)?, dq)));
+            match symbolic {
+                Ok((ddq, dq)) => Kind::Symbolic(Box::new([q, dq, ddq])),
+                Err(_) => Kind::Jet(Box::new(substitute(parse::<Jet>(source)?, source, params)?)),
+            }
+        };
+        let f = TimeFunction {
+            source: source.to_string(),
+            kind,
+        };
+        let at0 = f.eval(0.0);
+        if at0.iter().any(|v| !v.is_finite()) {
+            return Err(format!(
+                "drive `{source}` at t = 0: value, rate, acceleration = {at0:?} (must be finite)"
+            ));
+        }
+        Ok(f)
+    }
+
+    /// q(t) = v for all t
+    pub fn constant(v: f64) -> TimeFunction {
+        TimeFunction {
+            source: format!("{v}"),
+            kind: Kind::Constant(v),
+        }
+    }
+
+    /// Whether the derivatives come from exmex's symbolic differentiation (else from jets).
+    pub fn is_symbolic(&self) -> bool {
+        !matches!(self.kind, Kind::Jet(_))
+    }
+
+    /// value, rate and acceleration at time `t` (NaN if the expression cannot be evaluated)
+    pub fn eval(&self, t: f64) -> [f64; 3] {
+        match &self.kind {
+            Kind::Constant(v) => [*v, 0.0, 0.0],
+            Kind::Symbolic(e) => e
+                .each_ref()
+                .map(|e| e.eval_relaxed(&[t]).unwrap_or(f64::NAN)),
+            Kind::Jet(e) => match e.eval_relaxed(&[Jet::variable(t)]) {
+                Ok(j) => [j.v, j.d1, j.d2],
+                Err(_) => [f64::NAN; 3],
+            },
+        }
+    }
+
+    #[cfg(test)]
+    fn force_jet(source: &str, params: &[(String, f64)]) -> TimeFunction {
+        let e = substitute(parse::<Jet>(source).unwrap(), source, params).unwrap();
+        TimeFunction {
+            source: source.into(),
+            kind: Kind::Jet(Box::new(e)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(list: &[(&str, f64)]) -> Vec<(String, f64)> {
+        list.iter().map(|(n, v)| (n.to_string(), *v)).collect()
+    }
+
+    /// 5-point central differences of value (for rate) and of the rate (for acceleration)
+    fn fd(f: &TimeFunction, t: f64, h: f64) -> (f64, f64) {
+        let q = |t| f.eval(t)[0];
+        let v = |t| f.eval(t)[1];
+        let d = |g: &dyn Fn(f64) -> f64| {
+            (g(t - 2.0 * h) - 8.0 * g(t - h) + 8.0 * g(t + h) - g(t + 2.0 * h)) / (12.0 * h)
+        };
+        (d(&q), d(&v))
+    }
+
+    #[test]
+    fn constants_and_parameters() {
+        let ps = p(&[("L", 2.0), ("E", 7.0)]);
+        assert!((eval("2*pi", &[]).unwrap() - TAU).abs() < 1e-15);
+        assert!((eval("PI/2", &[]).unwrap() - PI / 2.0).abs() < 1e-15);
+        assert!((eval("e", &[]).unwrap() - E).abs() < 1e-15);
+        assert_eq!(eval("E", &ps).unwrap(), 7.0, "parameters replace constants");
+        assert_eq!(eval("L/4", &ps).unwrap(), 0.5);
+        assert_eq!(eval("1.5e3 + 2E-1", &[]).unwrap(), 1500.2);
+        assert_eq!(eval("3", &[]).unwrap(), 3.0);
+        assert_eq!(eval("max(L, 3)", &ps).unwrap(), 3.0);
+    }
+
+    #[test]
+    fn errors_name_the_problem() {
+        let e = eval("2*Lx", &p(&[("L", 1.0)])).unwrap_err();
+        assert!(e.contains("`Lx`"), "{e}");
+        let e = eval("ln(0-1)", &[]).unwrap_err();
+        assert!(e.contains("NaN"), "{e}");
+        let e = eval("1/0", &[]).unwrap_err();
+        assert!(e.contains("inf"), "{e}");
+        assert!(eval("2*(3", &[]).is_err());
+        assert!(eval("", &[]).is_err());
+        assert!(TimeFunction::new("q*t", &[]).unwrap_err().contains("`q`"));
+    }
+
+    #[test]
+    fn parameter_names() {
+        assert!(check_param_name("L").is_ok());
+        assert!(check_param_name("E").is_ok());
+        assert!(check_param_name("n_el2").is_ok());
+        assert!(check_param_name("t").is_err());
+        assert!(check_param_name("sin").is_err());
+        assert!(check_param_name("max_load").is_err());
+        assert!(check_param_name("2a").is_err());
+        assert!(check_param_name("a-b").is_err());
+    }
+
+    #[test]
+    fn deployment_profile_has_exact_derivatives() {
+        let (l, tt) = (2.0, 3.0);
+        let ps = p(&[("L", l), ("T", tt)]);
+        let f = TimeFunction::new("(L/T)*(t - T/(2*pi)*sin(2*pi*t/T))", &ps).unwrap();
+        assert!(f.is_symbolic());
+        let w = TAU / tt;
+        for &t in &[0.0, 0.3, 1.1, 2.9, 3.0] {
+            let [q, v, a] = f.eval(t);
+            let q_ex = (l / tt) * (t - (w * t).sin() / w);
+            let v_ex = (l / tt) * (1.0 - (w * t).cos());
+            let a_ex = (l / tt) * w * (w * t).sin();
+            assert!((q - q_ex).abs() < 1e-14, "t={t}");
+            assert!((v - v_ex).abs() < 1e-14, "t={t}");
+            assert!((a - a_ex).abs() < 1e-13, "t={t}");
+        }
+    }
+
+    #[test]
+    fn piecewise_deployment_with_min_matches_finite_differences() {
+        let (l, tt) = (2.0, 3.0);
+        let ps = p(&[("L", l), ("T", tt)]);
+        let src = "(L/T)*(min(t,T) - T/(2*pi)*sin(2*pi*min(t,T)/T))";
+        let f = TimeFunction::new(src, &ps).unwrap();
+        assert!(!f.is_symbolic(), "min has no exmex derivative rule");
+        for &t in &[0.4, 1.7, 2.5, 2.99, 3.01, 3.5, 10.0] {
+            let [_, v, a] = f.eval(t);
+            let (v_fd, a_fd) = fd(&f, t, 1e-4);
+            assert!((v - v_fd).abs() < 1e-8, "t={t}: {v} vs {v_fd}");
+            assert!((a - a_fd).abs() < 1e-7, "t={t}: {a} vs {a_fd}");
+        }
+        assert!((f.eval(5.0)[0] - l).abs() < 1e-14);
+        assert_eq!(f.eval(5.0)[1..], [0.0, 0.0]);
+        // the documented min-free form gives the same profile
+        let g = TimeFunction::new(
+            "(L/T)*((t+T-abs(t-T))/2 - T/(2*pi)*sin(2*pi*((t+T-abs(t-T))/2)/T))",
+            &ps,
+        )
+        .unwrap();
+        for &t in &[0.4, 2.5, 3.5] {
+            let (a, b) = (f.eval(t), g.eval(t));
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() < 1e-12, "t={t} k={k}");
+            }
+        }
+    }
+
+    #[test]
+    fn jets_agree_with_symbolic_derivatives() {
+        let ps = p(&[("w", 1.3), ("a", 0.7)]);
+        for src in [
+            "a*sin(w*t)^2 + cos(t)/(2+t)",
+            "exp(-a*t)*sqrt(1+t^2)",
+            "(t-2)^2 + t^3 - ln(1+t)",
+            "tanh(t) + atan(a*t) + sinh(t/3) + log10(2+t)",
+            "2^t",
+        ] {
+            let s = TimeFunction::new(src, &ps).unwrap();
+            assert!(s.is_symbolic(), "{src}");
+            let j = TimeFunction::force_jet(src, &ps);
+            for &t in &[0.0, 0.5, 1.0, 2.5] {
+                let (x, y) = (s.eval(t), j.eval(t));
+                for k in 0..3 {
+                    assert!(
+                        (x[k] - y[k]).abs() < 1e-12 * (1.0 + x[k].abs()),
+                        "{src} t={t} k={k}: {x:?} vs {y:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn nonsmooth_functions_and_constants() {
+        let f = TimeFunction::new("3*abs(t-1) + atan2(t, 1)", &[]).unwrap();
+        for &t in &[0.2, 1.7] {
+            let (v_fd, a_fd) = fd(&f, t, 1e-4);
+            let [_, v, a] = f.eval(t);
+            assert!((v - v_fd).abs() < 1e-8 && (a - a_fd).abs() < 1e-7, "t={t}");
+        }
+        let c = TimeFunction::new("2*pi", &[]).unwrap();
+        assert_eq!(c.eval(4.0), [TAU, 0.0, 0.0]);
+        assert!(
+            TimeFunction::new("sqrt(t)", &[]).is_err(),
+            "infinite rate at t = 0"
+        );
+    }
+
+    #[test]
+    fn time_functions_are_small_and_can_be_shared_between_threads() {
+        fn is_send_sync<T: Send + Sync>() {}
+        is_send_sync::<TimeFunction>();
+        assert!(std::mem::size_of::<TimeFunction>() <= 64);
     }
 }

@@ -1,7 +1,12 @@
 //! Model files: spec (serde types, user vocabulary), expressions, compilation into the
 //! immutable [`Model`].
 
+pub mod compile;
+mod error;
 pub mod expr;
+pub mod spec;
 mod types;
 
+pub use compile::{compile_str, load, parse_set};
+pub use error::ModelError;
 pub use types::*;

@@ -169,7 +169,11 @@ pub enum SensorKind {
     /// [N, Vy, Vz, T, My, Mz]
     Section { element: usize, xi: f64 },
     /// one component of the above section forces (name from `SECTION_COMPONENTS`)
-    SectionComponent { element: usize, xi: f64, component: usize },
+    SectionComponent {
+        element: usize,
+        xi: f64,
+        component: usize,
+    },
     /// hinge angle and rate
     HingeAngle { hinge: usize },
     /// body reference point position (3) and rotation vector (3)

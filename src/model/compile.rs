@@ -1,0 +1,1936 @@
+//! Compilation of a parsed spec into the immutable [`Model`]: parameters are resolved,
+//! beams are meshed, names become indices and every coordinate becomes a [`Dof`].
+//!
+//! Dof (and equation) order: node dofs in node order (translations x, y, z, then spin
+//! x, y, z), then body dofs in file order, then hinge angles in joint order. Nodes are
+//! the user's nodes in file order followed by each beam's interior nodes `BEAM:1`, ...
+
+use std::collections::HashMap;
+use std::ops::Range;
+use std::path::Path;
+
+use super::error::ModelError;
+use super::expr::{self, TimeFunction};
+use super::spec::{self, *};
+use super::types::*;
+use crate::math::*;
+
+type Result<T> = std::result::Result<T, ModelError>;
+
+/// Reads and compiles a model file; `overrides` replace parameter values (`--set`).
+pub fn load(path: &Path, overrides: &[(String, f64)]) -> Result<Model> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| ModelError::file(&file, None, format!("cannot read model file: {e}")))?;
+    compile_str(&text, &file, overrides)
+}
+
+/// Compiles model text; `path` names the file in messages and in `Model::path`.
+pub fn compile_str(text: &str, path: &str, overrides: &[(String, f64)]) -> Result<Model> {
+    let spec = spec::parse(text, path)?;
+    Compiler {
+        file: path,
+        text,
+        params: Vec::new(),
+    }
+    .compile(&spec, overrides)
+}
+
+/// Parses a command-line `NAME=VALUE`; the value may be an expression of constants
+/// (`T=2*pi`).
+pub fn parse_set(s: &str) -> std::result::Result<(String, f64), String> {
+    let (name, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected NAME=VALUE, got `{s}`"))?;
+    let name = name.trim();
+    if name.is_empty() {
+        return Err(format!("expected NAME=VALUE, got `{s}`"));
+    }
+    let v = expr::eval(value.trim(), &[]).map_err(|e| format!("--set {name}: {e}"))?;
+    Ok((name.to_string(), v))
+}
+
+struct Compiler<'a> {
+    file: &'a str,
+    text: &'a str,
+    /// parameters resolved so far (all of them once parameters are done)
+    params: Vec<(String, f64)>,
+}
+
+/// A joint after name resolution; becomes node kinematics once dofs are numbered.
+struct JointDraft {
+    node: usize,
+    parent: Parent,
+    /// index into `Model::hinges` for hinge joints
+    hinge: Option<usize>,
+}
+
+enum Parent {
+    Body(Option<usize>),
+    Node(usize),
+}
+
+/// A hinge whose dof is created after all node and body dofs.
+struct HingeDraft {
+    name: String,
+    axis_local: Vec3,
+    stiffness: f64,
+    damping: f64,
+    lock_angle: Option<f64>,
+    lock_time: Option<f64>,
+    v0: f64,
+}
+
+struct BodyDraft {
+    body: Body,
+    dofs: Vec<DofDraft>,
+}
+
+enum DofDraft {
+    Translate(Vec3, Dof),
+    Rotate(Vec3, Dof),
+    FreeRotation(Box<[Dof; 3]>, Vec3),
+}
+
+fn dof(name: String, mode: DofMode, q0: f64, v0: f64) -> Dof {
+    Dof {
+        name,
+        mode,
+        q0,
+        v0,
+        eq: None,
+    }
+}
+
+fn free_dof(name: String) -> Dof {
+    dof(name, DofMode::Free, 0.0, 0.0)
+}
+
+impl Compiler<'_> {
+    fn err(
+        &self,
+        span: Range<usize>,
+        field: impl Into<String>,
+        msg: impl std::fmt::Display,
+    ) -> ModelError {
+        ModelError::at(self.file, self.text, span, field, msg)
+    }
+
+    fn num_at(&self, n: &Num, span: Range<usize>, field: &str) -> Result<f64> {
+        match n {
+            Num::Value(v) if v.is_finite() => Ok(*v),
+            Num::Value(v) => Err(self.err(span, field, format!("value {v} is not finite"))),
+            Num::Expr(s) => expr::eval(s, &self.params).map_err(|e| self.err(span, field, e)),
+        }
+    }
+
+    fn num(&self, n: &Spanned<Num>, field: &str) -> Result<f64> {
+        self.num_at(n.get_ref(), n.span(), field)
+    }
+
+    fn opt_num(&self, n: &Option<Spanned<Num>>, field: &str) -> Result<Option<f64>> {
+        n.as_ref().map(|n| self.num(n, field)).transpose()
+    }
+
+    fn positive(&self, n: &Spanned<Num>, field: &str) -> Result<f64> {
+        let v = self.num(n, field)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(n.span(), field, format!("must be > 0, is {v}")))
+        }
+    }
+
+    fn non_negative(&self, n: &Spanned<Num>, field: &str) -> Result<f64> {
+        let v = self.num(n, field)?;
+        if v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(n.span(), field, format!("must be >= 0, is {v}")))
+        }
+    }
+
+    fn integer(&self, n: &Spanned<Num>, field: &str, min: usize) -> Result<usize> {
+        let v = self.num(n, field)?;
+        if (v - v.round()).abs() > 1e-9 * v.abs().max(1.0) || v.round() < min as f64 {
+            return Err(self.err(
+                n.span(),
+                field,
+                format!("must be an integer >= {min}, is {v}"),
+            ));
+        }
+        Ok(v.round() as usize)
+    }
+
+    fn vec3(&self, v: &Spanned<Vector>, field: &str) -> Result<Vec3> {
+        let items = v.get_ref();
+        if items.len() != 3 {
+            return Err(self.err(
+                v.span(),
+                field,
+                format!("must have 3 components, has {}", items.len()),
+            ));
+        }
+        let mut out = [0.0; 3];
+        for (k, x) in items.iter().enumerate() {
+            out[k] = self.num(x, &format!("{field}[{k}]"))?;
+        }
+        Ok(out)
+    }
+
+    fn opt_vec3(&self, v: &Option<Spanned<Vector>>, field: &str) -> Result<Vec3> {
+        v.as_ref().map_or(Ok([0.0; 3]), |v| self.vec3(v, field))
+    }
+
+    fn unit(&self, v: &Spanned<Vector>, field: &str) -> Result<Vec3> {
+        let x = self.vec3(v, field)?;
+        let n = norm(x);
+        if n > 0.0 {
+            Ok(scale(x, 1.0 / n))
+        } else {
+            Err(self.err(v.span(), field, "has zero length"))
+        }
+    }
+
+    fn required<'s, T>(
+        &self,
+        v: &'s Option<Spanned<T>>,
+        owner: Range<usize>,
+        field: &str,
+        why: &str,
+    ) -> Result<&'s Spanned<T>> {
+        v.as_ref()
+            .ok_or_else(|| self.err(owner, field, format!("missing field{why}")))
+    }
+
+    fn forbid<T>(&self, v: &Option<Spanned<T>>, field: &str, why: &str) -> Result<()> {
+        match v {
+            Some(v) => Err(self.err(v.span(), field, why)),
+            None => Ok(()),
+        }
+    }
+
+    fn name(&self, n: &Spanned<String>, field: &str) -> Result<String> {
+        if n.get_ref().trim().is_empty() {
+            Err(self.err(n.span(), field, "must not be empty"))
+        } else {
+            Ok(n.get_ref().clone())
+        }
+    }
+
+    fn lookup(
+        &self,
+        names: &[String],
+        n: &Spanned<String>,
+        field: &str,
+        what: &str,
+    ) -> Result<usize> {
+        names
+            .iter()
+            .position(|x| x == n.get_ref())
+            .ok_or_else(|| self.err(n.span(), field, format!("unknown {what} `{}`", n.get_ref())))
+    }
+
+    fn compile(mut self, spec: &Spec, overrides: &[(String, f64)]) -> Result<Model> {
+        self.parameters(spec, overrides)?;
+        let sections = self.sections(spec)?;
+
+        let mut node_names = Vec::new();
+        let mut x0 = Vec::new();
+        for (i, n) in spec.nodes.iter().enumerate() {
+            let f = format!("nodes[{i}]");
+            let name = self.name(&n.get_ref().name, &format!("{f}.name"))?;
+            if node_names.contains(&name) {
+                return Err(self.err(
+                    n.get_ref().name.span(),
+                    format!("{f}.name"),
+                    format!("duplicate node name `{name}`"),
+                ));
+            }
+            node_names.push(name);
+            x0.push(self.vec3(&n.get_ref().position, &format!("{f}.position"))?);
+        }
+
+        let bodies = self.bodies(spec)?;
+        let size = model_size(&x0, &bodies);
+        let (elements, beams) = self.beams(spec, &sections, &mut node_names, &mut x0, size)?;
+
+        let mut supports: Vec<Option<SupportType>> = vec![None; node_names.len()];
+        for (i, s) in spec.supports.iter().enumerate() {
+            let f = format!("supports[{i}].node");
+            let node = self.lookup(&node_names, &s.get_ref().node, &f, "node")?;
+            if supports[node].is_some() {
+                return Err(self.err(
+                    s.get_ref().node.span(),
+                    f,
+                    format!("node `{}` already has a support", node_names[node]),
+                ));
+            }
+            supports[node] = Some(*s.get_ref().kind.get_ref());
+        }
+
+        let body_names: Vec<String> = bodies.iter().map(|b| b.body.name.clone()).collect();
+        let (joints, hinge_drafts, joint_names, joint_hinge) = self.joints(
+            spec,
+            &node_names,
+            &x0,
+            &supports,
+            &bodies,
+            &body_names,
+            size,
+        )?;
+
+        // dofs, in the documented order
+        let mut dofs: Vec<Dof> = Vec::new();
+        let mut spins: Vec<Spin> = Vec::new();
+        let mut node_kin = Vec::with_capacity(node_names.len());
+        let mut joint_of_node: Vec<Option<usize>> = vec![None; node_names.len()];
+        for (j, jd) in joints.iter().enumerate() {
+            joint_of_node[jd.node] = Some(j);
+        }
+        // a node with dofs of its own but no element would make the system singular
+        let mut on_element = vec![false; node_names.len()];
+        for e in &elements {
+            on_element[e.n1] = true;
+            on_element[e.n2] = true;
+        }
+        for (i, n) in spec.nodes.iter().enumerate() {
+            let has_dofs = joint_of_node[i].is_none() && supports[i] != Some(SupportType::Clamped);
+            if has_dofs && !on_element[i] {
+                return Err(self.err(
+                    n.get_ref().name.span(),
+                    format!("nodes[{i}].name"),
+                    format!(
+                        "node `{}` is on no beam and not held by a support or joint: its dofs \
+                         would have neither stiffness nor mass",
+                        node_names[i]
+                    ),
+                ));
+            }
+        }
+        for n in 0..node_names.len() {
+            let kin = if let Some(j) = joint_of_node[n] {
+                let jd = &joints[j];
+                match jd.parent {
+                    Parent::Body(body) => {
+                        let (xb, rb) =
+                            body.map_or(([0.0; 3], I3), |b| (bodies[b].body.x0, bodies[b].body.r0));
+                        NodeKin::OnBody {
+                            body,
+                            s: mat_t_vec(&rb, sub(x0[n], xb)),
+                            hinge: jd.hinge,
+                            r_rel: transpose(&rb),
+                        }
+                    }
+                    Parent::Node(master) => NodeKin::OnNode {
+                        master,
+                        // node-to-node joints are always hinges (checked in `joints`)
+                        hinge: jd.hinge.unwrap_or_default(),
+                        r_rel: I3,
+                    },
+                }
+            } else {
+                let name = &node_names[n];
+                let mut spin_group = |dofs: &mut Vec<Dof>| {
+                    let d0 = dofs.len();
+                    for c in ["rx", "ry", "rz"] {
+                        dofs.push(free_dof(format!("{name}.{c}")));
+                    }
+                    spins.push(Spin {
+                        dofs: [d0, d0 + 1, d0 + 2],
+                        omega0: [0.0; 3],
+                    });
+                    Some(spins.len() - 1)
+                };
+                match supports[n] {
+                    Some(SupportType::Clamped) => NodeKin::OnBody {
+                        body: None,
+                        s: x0[n],
+                        hinge: None,
+                        r_rel: I3,
+                    },
+                    Some(SupportType::Pinned) => NodeKin::Free {
+                        trans: [None; 3],
+                        spin: spin_group(&mut dofs),
+                    },
+                    _ => {
+                        let d0 = dofs.len();
+                        for c in ["x", "y", "z"] {
+                            dofs.push(free_dof(format!("{name}.{c}")));
+                        }
+                        NodeKin::Free {
+                            trans: [Some(d0), Some(d0 + 1), Some(d0 + 2)],
+                            spin: spin_group(&mut dofs),
+                        }
+                    }
+                }
+            };
+            node_kin.push(kin);
+        }
+
+        let mut model_bodies = Vec::with_capacity(bodies.len());
+        for bd in bodies {
+            let mut body = bd.body;
+            for d in bd.dofs {
+                match d {
+                    DofDraft::Translate(dir, q) => {
+                        dofs.push(q);
+                        body.chain.push(ChainLink::Translate {
+                            dof: dofs.len() - 1,
+                            dir,
+                        });
+                    }
+                    DofDraft::Rotate(axis, q) => {
+                        dofs.push(q);
+                        body.chain.push(ChainLink::RotateFixedAxis {
+                            dof: dofs.len() - 1,
+                            axis,
+                        });
+                    }
+                    DofDraft::FreeRotation(qs, omega0) => {
+                        let d0 = dofs.len();
+                        dofs.extend(*qs);
+                        spins.push(Spin {
+                            dofs: [d0, d0 + 1, d0 + 2],
+                            omega0,
+                        });
+                        for k in 0..3 {
+                            body.chain.push(ChainLink::SpinComponent {
+                                dof: d0 + k,
+                                spin: spins.len() - 1,
+                                k,
+                            });
+                        }
+                    }
+                }
+            }
+            model_bodies.push(body);
+        }
+
+        let mut hinges = Vec::with_capacity(hinge_drafts.len());
+        for h in hinge_drafts {
+            dofs.push(dof(format!("{}.angle", h.name), DofMode::Free, 0.0, h.v0));
+            hinges.push(Hinge {
+                name: h.name,
+                dof: dofs.len() - 1,
+                axis_local: h.axis_local,
+                stiffness: h.stiffness,
+                damping: h.damping,
+                angle_ref: 0.0,
+                lock_angle: h.lock_angle,
+                lock_time: h.lock_time,
+            });
+        }
+
+        let mut n_eq = 0;
+        for d in dofs.iter_mut() {
+            if matches!(d.mode, DofMode::Free) {
+                d.eq = Some(n_eq);
+                n_eq += 1;
+            }
+        }
+
+        let mut loads = Vec::new();
+        for (i, l) in spec.loads.iter().enumerate() {
+            let f = format!("loads[{i}]");
+            let l = l.get_ref();
+            loads.push(NodeLoad {
+                node: self.lookup(&node_names, &l.node, &format!("{f}.node"), "node")?,
+                force: self.opt_vec3(&l.force, &format!("{f}.force"))?,
+                moment: self.opt_vec3(&l.moment, &format!("{f}.moment"))?,
+            });
+        }
+        let gravity = match &spec.environment {
+            Some(e) => self.opt_vec3(&e.get_ref().gravity, "environment.gravity")?,
+            None => [0.0; 3],
+        };
+
+        let sensors = self.sensors(
+            spec,
+            &node_names,
+            &beams,
+            &body_names,
+            &joint_names,
+            &joint_hinge,
+        )?;
+        let solver = self.solver(spec)?;
+
+        let name = match spec.model.as_ref().and_then(|m| m.get_ref().name.as_ref()) {
+            Some(n) => n.get_ref().clone(),
+            None => Path::new(self.file).file_stem().map_or_else(
+                || self.file.to_string(),
+                |s| s.to_string_lossy().into_owned(),
+            ),
+        };
+
+        Ok(Model {
+            name,
+            path: self.file.to_string(),
+            source: self.text.to_string(),
+            params: self.params,
+            node_names,
+            x0,
+            node_kin,
+            elements,
+            beams,
+            bodies: model_bodies,
+            dofs,
+            spins,
+            hinges,
+            loads,
+            gravity,
+            sensors,
+            solver,
+            n_eq,
+        })
+    }
+
+    /// Parameters in file order; an expression may use the parameters before it. An
+    /// override replaces the value (and so changes the parameters computed from it).
+    fn parameters(&mut self, spec: &Spec, overrides: &[(String, f64)]) -> Result<()> {
+        for (key, value) in &spec.parameters.0 {
+            let name = key.get_ref();
+            let f = format!("parameters.{name}");
+            expr::check_param_name(name).map_err(|e| self.err(key.span(), &f, e))?;
+            let v = match overrides.iter().rev().find(|(n, _)| n == name) {
+                Some((_, v)) => *v,
+                None => match value.get_ref() {
+                    ParamValue::Plain(n) => self.num_at(n, value.span(), &f),
+                    ParamValue::Full(t) => self.num(&t.value, &format!("{f}.value")),
+                }
+                .map_err(|mut e| {
+                    let later = spec
+                        .parameters
+                        .0
+                        .iter()
+                        .map(|(k, _)| k.get_ref())
+                        .find(|k| {
+                            !self.params.iter().any(|(n, _)| n == *k)
+                                && e.message.contains(&format!("undefined parameter `{k}`"))
+                        });
+                    if let Some(k) = later {
+                        e.message += &format!(
+                            " (`{k}` is defined later: a parameter can only use those before it)"
+                        );
+                    }
+                    e
+                })?,
+            };
+            self.params.push((name.clone(), v));
+        }
+        for (name, _) in overrides {
+            if !self.params.iter().any(|(n, _)| n == name) {
+                let known: Vec<&str> = self.params.iter().map(|(n, _)| n.as_str()).collect();
+                return Err(ModelError::file(
+                    self.file,
+                    Some(format!("--set {name}")),
+                    format!(
+                        "the model has no parameter `{name}` (parameters: {})",
+                        if known.is_empty() {
+                            "none".to_string()
+                        } else {
+                            known.join(", ")
+                        }
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn sections(&self, spec: &Spec) -> Result<HashMap<String, BeamProps>> {
+        let mut materials = HashMap::new();
+        for (key, m) in &spec.materials.0 {
+            let f = format!("materials.{}", key.get_ref());
+            let m = m.get_ref();
+            let e = self.positive(&m.e, &format!("{f}.E"))?;
+            let g = self.positive(&m.g, &format!("{f}.G"))?;
+            let rho = self.non_negative(&m.density, &format!("{f}.density"))?;
+            materials.insert(key.get_ref().clone(), (e, g, rho));
+        }
+        let mut out = HashMap::new();
+        for (key, s) in &spec.sections.0 {
+            let f = format!("sections.{}", key.get_ref());
+            let props = self.section(&f, s, &materials)?;
+            out.insert(key.get_ref().clone(), props);
+        }
+        Ok(out)
+    }
+
+    fn section(
+        &self,
+        f: &str,
+        s: &Spanned<Section>,
+        materials: &HashMap<String, (f64, f64, f64)>,
+    ) -> Result<BeamProps> {
+        let span = s.span();
+        let s = s.get_ref();
+        let direct = [
+            (&s.ea, "EA"),
+            (&s.eiy, "EIy"),
+            (&s.eiz, "EIz"),
+            (&s.gj, "GJ"),
+            (&s.rho_a, "rhoA"),
+            (&s.rho_iy, "rhoIy"),
+            (&s.rho_iz, "rhoIz"),
+        ];
+        let dims = [
+            (&s.outer_diameter, "outer_diameter"),
+            (&s.inner_diameter, "inner_diameter"),
+            (&s.diameter, "diameter"),
+            (&s.width, "width"),
+            (&s.height, "height"),
+        ];
+        let Some(shape) = &s.shape else {
+            for (v, k) in dims {
+                self.forbid(v, &format!("{f}.{k}"), "only used with `shape`")?;
+            }
+            self.forbid(
+                &s.material,
+                &format!("{f}.material"),
+                "only used with `shape`",
+            )?;
+            let req = |v: &Option<Spanned<Num>>, k: &str| -> Result<f64> {
+                let fk = format!("{f}.{k}");
+                self.positive(
+                    self.required(
+                        v,
+                        span.clone(),
+                        &fk,
+                        " (direct properties need EA, EIy, EIz, GJ, rhoA)",
+                    )?,
+                    &fk,
+                )
+            };
+            let rho_a = {
+                let fk = format!("{f}.rhoA");
+                self.non_negative(
+                    self.required(
+                        &s.rho_a,
+                        span.clone(),
+                        &fk,
+                        " (direct properties need EA, EIy, EIz, GJ, rhoA)",
+                    )?,
+                    &fk,
+                )?
+            };
+            let opt = |v: &Option<Spanned<Num>>, k: &str| -> Result<f64> {
+                v.as_ref()
+                    .map_or(Ok(0.0), |v| self.non_negative(v, &format!("{f}.{k}")))
+            };
+            return Ok(BeamProps {
+                ea: req(&s.ea, "EA")?,
+                eiy: req(&s.eiy, "EIy")?,
+                eiz: req(&s.eiz, "EIz")?,
+                gj: req(&s.gj, "GJ")?,
+                rho_a,
+                rho_iy: opt(&s.rho_iy, "rhoIy")?,
+                rho_iz: opt(&s.rho_iz, "rhoIz")?,
+            });
+        };
+        for (v, k) in direct {
+            self.forbid(
+                v,
+                &format!("{f}.{k}"),
+                "cannot be combined with `shape` (give direct properties or a shape, not both)",
+            )?;
+        }
+        let shape = *shape.get_ref();
+        let mf = format!("{f}.material");
+        let mat = self.required(
+            &s.material,
+            span.clone(),
+            &mf,
+            " (a shape needs a material)",
+        )?;
+        let &(e, g, rho) = materials.get(mat.get_ref()).ok_or_else(|| {
+            self.err(
+                mat.span(),
+                &mf,
+                format!("unknown material `{}`", mat.get_ref()),
+            )
+        })?;
+        let used: &[&str] = match shape {
+            Shape::Tube => &["outer_diameter", "inner_diameter"],
+            Shape::Circle => &["diameter"],
+            Shape::Rectangle => &["width", "height"],
+        };
+        let shape_name = match shape {
+            Shape::Tube => "tube",
+            Shape::Circle => "circle",
+            Shape::Rectangle => "rectangle",
+        };
+        for (v, k) in dims {
+            if !used.contains(&k) {
+                self.forbid(
+                    v,
+                    &format!("{f}.{k}"),
+                    &format!("not used by shape `{shape_name}`"),
+                )?;
+            }
+        }
+        let mut d = HashMap::new();
+        for (v, k) in dims {
+            if used.contains(&k) {
+                let fk = format!("{f}.{k}");
+                let why = format!(" (shape `{shape_name}` needs {})", used.join(", "));
+                let v = self.required(v, span.clone(), &fk, &why)?;
+                let x = if k == "inner_diameter" {
+                    self.non_negative(v, &fk)?
+                } else {
+                    self.positive(v, &fk)?
+                };
+                d.insert(k, (x, v.span()));
+            }
+        }
+        let pi = std::f64::consts::PI;
+        let (area, iy, iz, j) = match shape {
+            Shape::Tube => {
+                let (od, id) = (d["outer_diameter"].0, d["inner_diameter"].clone());
+                if id.0 >= od {
+                    return Err(self.err(
+                        id.1,
+                        format!("{f}.inner_diameter"),
+                        format!("must be smaller than outer_diameter ({od}), is {}", id.0),
+                    ));
+                }
+                let i = pi * (od.powi(4) - id.0.powi(4)) / 64.0;
+                (pi * (od * od - id.0 * id.0) / 4.0, i, i, 2.0 * i)
+            }
+            Shape::Circle => {
+                let dd = d["diameter"].0;
+                let i = pi * dd.powi(4) / 64.0;
+                (pi * dd * dd / 4.0, i, i, 2.0 * i)
+            }
+            Shape::Rectangle => {
+                // width b along local y, height h along local z
+                let (b, h) = (d["width"].0, d["height"].0);
+                (
+                    b * h,
+                    b * h.powi(3) / 12.0,
+                    h * b.powi(3) / 12.0,
+                    rect_torsion(b, h),
+                )
+            }
+        };
+        Ok(BeamProps {
+            ea: e * area,
+            eiy: e * iy,
+            eiz: e * iz,
+            gj: g * j,
+            rho_a: rho * area,
+            rho_iy: rho * iy,
+            rho_iz: rho * iz,
+        })
+    }
+
+    fn bodies(&self, spec: &Spec) -> Result<Vec<BodyDraft>> {
+        let mut out: Vec<BodyDraft> = Vec::new();
+        for (i, b) in spec.bodies.iter().enumerate() {
+            let f = format!("bodies[{i}]");
+            let span = b.span();
+            let b = b.get_ref();
+            let name = self.name(&b.name, &format!("{f}.name"))?;
+            if name == "ground" || out.iter().any(|o| o.body.name == name) {
+                let why = if name == "ground" {
+                    "`ground` is reserved for the fixed frame".to_string()
+                } else {
+                    format!("duplicate body name `{name}`")
+                };
+                return Err(self.err(b.name.span(), format!("{f}.name"), why));
+            }
+            let x0 = b
+                .position
+                .as_ref()
+                .map_or(Ok([0.0; 3]), |p| self.vec3(p, &format!("{f}.position")))?;
+            let r0 = match &b.axes {
+                None => I3,
+                Some(axes) => self.axes(axes, &format!("{f}.axes"))?,
+            };
+            let com = self.opt_vec3(&b.com, &format!("{f}.com"))?;
+            let inertia = match &b.inertia {
+                None => [[0.0; 3]; 3],
+                Some(v) => self.inertia(v, &format!("{f}.inertia"))?,
+            };
+            let mass = match &b.mass {
+                Some(m) if !b.dofs.is_empty() => self.positive(m, &format!("{f}.mass"))?,
+                Some(m) => self.non_negative(m, &format!("{f}.mass"))?,
+                None if !b.dofs.is_empty() => {
+                    return Err(self.err(
+                        span,
+                        format!("{f}.mass"),
+                        "missing field (a body with dofs needs a mass > 0)",
+                    ));
+                }
+                None => 0.0,
+            };
+            let mut dofs = Vec::new();
+            let mut rotated = false;
+            for (k, d) in b.dofs.iter().enumerate() {
+                let fd = format!("{f}.dofs[{k}]");
+                let qname = format!("{name}.dofs[{k}]");
+                let kind = *d.get_ref().kind.get_ref();
+                if rotated {
+                    let why = match kind {
+                        DofType::Translation => "translations must come before the rotation",
+                        _ => "a body has at most one rotation or free_rotation",
+                    };
+                    return Err(self.err(d.get_ref().kind.span(), format!("{fd}.type"), why));
+                }
+                dofs.push(match kind {
+                    DofType::Translation | DofType::Rotation => {
+                        let axis = self.required(&d.get_ref().axis, d.span(), &format!("{fd}.axis"), "")?;
+                        let axis = self.unit(axis, &format!("{fd}.axis"))?;
+                        let q = self.body_dof(d, &fd, qname)?;
+                        if kind == DofType::Rotation {
+                            rotated = true;
+                            DofDraft::Rotate(axis, q)
+                        } else {
+                            DofDraft::Translate(axis, q)
+                        }
+                    }
+                    DofType::FreeRotation => {
+                        rotated = true;
+                        let d = d.get_ref();
+                        let why = "not used by free_rotation (three free spatial spins about the reference point)";
+                        self.forbid(&d.axis, &format!("{fd}.axis"), why)?;
+                        self.forbid(&d.drive, &format!("{fd}.drive"), why)?;
+                        self.forbid(&d.initial, &format!("{fd}.initial"), why)?;
+                        let fr = format!("{fd}.initial_rate");
+                        let omega0 = match &d.initial_rate {
+                            None => [0.0; 3],
+                            Some(r) => match r.get_ref() {
+                                NumOrVec::Vec(v) => self.vec3(&Spanned::new(r.span(), v.clone()), &fr)?,
+                                NumOrVec::Num(_) => {
+                                    return Err(self.err(r.span(), fr, "a free_rotation's initial_rate is an angular velocity vector [wx, wy, wz] (global frame)"));
+                                }
+                            },
+                        };
+                        let qs = ["x", "y", "z"].map(|c| free_dof(format!("{qname}.{c}")));
+                        DofDraft::FreeRotation(Box::new(qs), omega0)
+                    }
+                });
+            }
+            out.push(BodyDraft {
+                body: Body {
+                    name,
+                    x0,
+                    r0,
+                    mass,
+                    com,
+                    inertia,
+                    chain: Vec::new(),
+                },
+                dofs,
+            });
+        }
+        Ok(out)
+    }
+
+    /// A translation or single rotation coordinate: driven, or free with initial values.
+    fn body_dof(&self, d: &Spanned<DofSpec>, fd: &str, name: String) -> Result<Dof> {
+        let d = d.get_ref();
+        let Some(drive) = &d.drive else {
+            let q0 = self
+                .opt_num(&d.initial, &format!("{fd}.initial"))?
+                .unwrap_or(0.0);
+            let fr = format!("{fd}.initial_rate");
+            let v0 = match &d.initial_rate {
+                None => 0.0,
+                Some(r) => match r.get_ref() {
+                    NumOrVec::Num(n) => self.num_at(n, r.span(), &fr)?,
+                    NumOrVec::Vec(_) => return Err(self.err(r.span(), fr, "must be a number")),
+                },
+            };
+            return Ok(dof(name, DofMode::Free, q0, v0));
+        };
+        let why = "cannot be combined with `drive` (a driven dof starts where its drive does)";
+        self.forbid(&d.initial, &format!("{fd}.initial"), why)?;
+        self.forbid(&d.initial_rate, &format!("{fd}.initial_rate"), why)?;
+        let fdr = format!("{fd}.drive");
+        let tf = match drive.get_ref() {
+            Num::Value(v) => {
+                self.num_at(&Num::Value(*v), drive.span(), &fdr)?;
+                TimeFunction::constant(*v)
+            }
+            Num::Expr(s) => {
+                TimeFunction::new(s, &self.params).map_err(|e| self.err(drive.span(), &fdr, e))?
+            }
+        };
+        let [q0, v0, _] = tf.eval(0.0);
+        Ok(dof(name, DofMode::Driven(tf), q0, v0))
+    }
+
+    fn axes(&self, axes: &Spanned<Vec<Spanned<Vector>>>, f: &str) -> Result<Mat3> {
+        let v = axes.get_ref();
+        if v.len() != 2 {
+            return Err(self.err(
+                axes.span(),
+                f,
+                format!("must be [x axis, y axis], has {} entries", v.len()),
+            ));
+        }
+        let x = self.vec3(&v[0], &format!("{f}[0]"))?;
+        let y = self.vec3(&v[1], &format!("{f}[1]"))?;
+        let nx = norm(x);
+        let yp = sub(y, scale(x, dot(x, y) / (nx * nx)));
+        if nx == 0.0 || norm(yp) <= 1e-9 * norm(y) {
+            return Err(self.err(
+                axes.span(),
+                f,
+                "degenerate: x must be non-zero and y not parallel to x",
+            ));
+        }
+        let (x, y) = (normalize(x), normalize(yp));
+        Ok(from_cols(x, y, cross(x, y)))
+    }
+
+    fn inertia(&self, v: &Spanned<Vec<Spanned<NumOrVec>>>, f: &str) -> Result<Mat3> {
+        let shape_err = || {
+            self.err(
+                v.span(),
+                f,
+                "must be [Ixx, Iyy, Izz] or a 3x3 array of rows",
+            )
+        };
+        let items = v.get_ref();
+        if items.len() != 3 {
+            return Err(shape_err());
+        }
+        let mut m = [[0.0; 3]; 3];
+        for (r, item) in items.iter().enumerate() {
+            let fr = format!("{f}[{r}]");
+            match item.get_ref() {
+                NumOrVec::Num(n)
+                    if items
+                        .iter()
+                        .all(|x| matches!(x.get_ref(), NumOrVec::Num(_))) =>
+                {
+                    m[r][r] = self.num_at(n, item.span(), &fr)?;
+                }
+                NumOrVec::Vec(row)
+                    if items
+                        .iter()
+                        .all(|x| matches!(x.get_ref(), NumOrVec::Vec(_))) =>
+                {
+                    m[r] = self.vec3(&Spanned::new(item.span(), row.clone()), &fr)?;
+                }
+                _ => return Err(shape_err()),
+            }
+        }
+        let big = m.iter().flatten().fold(0.0f64, |a, x| a.max(x.abs()));
+        let asymmetric = [(0, 1), (0, 2), (1, 2)]
+            .iter()
+            .any(|&(i, j)| (m[i][j] - m[j][i]).abs() > 1e-12 * big);
+        if asymmetric {
+            return Err(self.err(v.span(), f, "inertia not symmetric"));
+        }
+        // Sylvester's criterion
+        let d1 = m[0][0];
+        let d2 = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+        let d3 = dot(col(&m, 0), cross(col(&m, 1), col(&m, 2)));
+        if !(d1 > 0.0 && d2 > 0.0 && d3 > 0.0) {
+            return Err(self.err(v.span(), f, "inertia not positive definite"));
+        }
+        Ok(m)
+    }
+
+    fn beams(
+        &self,
+        spec: &Spec,
+        sections: &HashMap<String, BeamProps>,
+        node_names: &mut Vec<String>,
+        x0: &mut Vec<Vec3>,
+        size: f64,
+    ) -> Result<(Vec<Element>, Vec<Beam>)> {
+        let mut elements = Vec::new();
+        let mut beams: Vec<Beam> = Vec::new();
+        for (bi, b) in spec.beams.iter().enumerate() {
+            let f = format!("beams[{bi}]");
+            let bspan = b.span();
+            let b = b.get_ref();
+            let name = self.name(&b.name, &format!("{f}.name"))?;
+            if beams.iter().any(|x| x.name == name) {
+                return Err(self.err(
+                    b.name.span(),
+                    format!("{f}.name"),
+                    format!("duplicate beam name `{name}`"),
+                ));
+            }
+            let n1 = self.lookup(node_names, &b.from, &format!("{f}.from"), "node")?;
+            let n2 = self.lookup(node_names, &b.to, &format!("{f}.to"), "node")?;
+            let n = self.integer(&b.elements, &format!("{f}.elements"), 1)?;
+            let props = *sections.get(b.section.get_ref()).ok_or_else(|| {
+                self.err(
+                    b.section.span(),
+                    format!("{f}.section"),
+                    format!("unknown section `{}`", b.section.get_ref()),
+                )
+            })?;
+            let (p1, p2) = (x0[n1], x0[n2]);
+            if n1 == n2 || norm(sub(p2, p1)) <= 1e-12 * size {
+                return Err(self.err(
+                    bspan,
+                    format!("{f}.to"),
+                    "zero-length beam: `from` and `to` are at the same position",
+                ));
+            }
+            let centre = b
+                .arc_center
+                .as_ref()
+                .map(|c| self.vec3(c, &format!("{f}.arc_center")))
+                .transpose()?;
+            let points: Vec<Vec3> = match centre {
+                None => (1..n)
+                    .map(|k| add(p1, scale(sub(p2, p1), k as f64 / n as f64)))
+                    .collect(),
+                Some(c) => {
+                    let fc = format!("{f}.arc_center");
+                    let span = b.arc_center.as_ref().map_or(bspan.clone(), |a| a.span());
+                    let (a, e) = (sub(p1, c), sub(p2, c));
+                    let (ra, re) = (norm(a), norm(e));
+                    if ra == 0.0 || re == 0.0 {
+                        return Err(self.err(span, fc, "coincides with an end of the beam"));
+                    }
+                    if (ra - re).abs() > 1e-6 * ra.max(re) {
+                        return Err(self.err(span, fc, format!("`from` and `to` are not equidistant from the centre (radii {ra} and {re})")));
+                    }
+                    let axb = cross(a, e);
+                    if norm(axb) <= 1e-9 * ra * re {
+                        return Err(self.err(span, fc, "`from`, `to` and the centre are collinear: the arc's plane is undefined"));
+                    }
+                    let theta = norm(axb).atan2(dot(a, e));
+                    let axis = normalize(axb);
+                    (1..n)
+                        .map(|k| add(c, mat_vec(&rot_axis(axis, theta * k as f64 / n as f64), a)))
+                        .collect()
+                }
+            };
+            let mut nodes = vec![n1];
+            for (k, p) in points.into_iter().enumerate() {
+                let nn = format!("{name}:{}", k + 1);
+                if node_names.contains(&nn) {
+                    return Err(self.err(
+                        b.name.span(),
+                        format!("{f}.name"),
+                        format!("interior node name `{nn}` is already used by a node"),
+                    ));
+                }
+                node_names.push(nn);
+                x0.push(p);
+                nodes.push(x0.len() - 1);
+            }
+            nodes.push(n2);
+            let hint = b
+                .orientation
+                .as_ref()
+                .map(|o| self.unit(o, &format!("{f}.orientation")))
+                .transpose()?;
+            let mut elems = Vec::with_capacity(n);
+            for k in 0..n {
+                let (a, e) = (nodes[k], nodes[k + 1]);
+                let d = sub(x0[e], x0[a]);
+                let len = norm(d);
+                if len <= 1e-12 * size {
+                    return Err(self.err(
+                        bspan.clone(),
+                        format!("{f}.elements"),
+                        format!("element {k} has zero length"),
+                    ));
+                }
+                let x = scale(d, 1.0 / len);
+                let y = match (hint, centre) {
+                    (Some(h), _) => {
+                        if norm(cross(x, h)) < 1e-6 {
+                            let span = b.orientation.as_ref().map_or(bspan.clone(), |o| o.span());
+                            return Err(self.err(
+                                span,
+                                format!("{f}.orientation"),
+                                format!("parallel to element {k} of the beam"),
+                            ));
+                        }
+                        perpendicular(x, h)
+                    }
+                    // towards the centre: the in-plane normal of the arc
+                    (None, Some(c)) => perpendicular(x, sub(c, scale(add(x0[a], x0[e]), 0.5))),
+                    (None, None) => perpendicular(x, least_parallel_axis(x)),
+                };
+                elements.push(Element {
+                    n1: a,
+                    n2: e,
+                    props,
+                    frame0: from_cols(x, y, cross(x, y)),
+                    beam: bi,
+                });
+                elems.push(elements.len() - 1);
+            }
+            beams.push(Beam {
+                name,
+                elements: elems,
+                nodes,
+            });
+        }
+        Ok((elements, beams))
+    }
+
+    #[allow(clippy::too_many_arguments, clippy::type_complexity)]
+    fn joints(
+        &self,
+        spec: &Spec,
+        node_names: &[String],
+        x0: &[Vec3],
+        supports: &[Option<SupportType>],
+        bodies: &[BodyDraft],
+        body_names: &[String],
+        size: f64,
+    ) -> Result<(
+        Vec<JointDraft>,
+        Vec<HingeDraft>,
+        Vec<String>,
+        Vec<Option<usize>>,
+    )> {
+        let mut drafts: Vec<JointDraft> = Vec::new();
+        let mut hinges = Vec::new();
+        let mut names: Vec<String> = Vec::new();
+        let mut joint_hinge = Vec::new();
+        for (i, js) in spec.joints.iter().enumerate() {
+            let f = format!("joints[{i}]");
+            let span = js.span();
+            let j = js.get_ref();
+            let name = self.name(&j.name, &format!("{f}.name"))?;
+            if names.contains(&name) {
+                return Err(self.err(
+                    j.name.span(),
+                    format!("{f}.name"),
+                    format!("duplicate joint name `{name}`"),
+                ));
+            }
+            let fnode = format!("{f}.node");
+            let node = self.lookup(node_names, &j.node, &fnode, "node")?;
+            if supports[node].is_some() {
+                return Err(self.err(
+                    j.node.span(),
+                    fnode,
+                    format!(
+                        "node `{}` has a support as well as a joint",
+                        node_names[node]
+                    ),
+                ));
+            }
+            if let Some(other) = drafts.iter().position(|d| d.node == node) {
+                return Err(self.err(
+                    j.node.span(),
+                    fnode,
+                    format!(
+                        "node `{}` already has joint `{}`",
+                        node_names[node], names[other]
+                    ),
+                ));
+            }
+            let kind = *j.kind.get_ref();
+            let parent = match (&j.body, &j.to_node) {
+                (Some(_), Some(t)) => {
+                    return Err(self.err(
+                        t.span(),
+                        format!("{f}.to_node"),
+                        "give either `body` or `to_node`, not both",
+                    ));
+                }
+                (None, None) => {
+                    return Err(self.err(
+                        span,
+                        format!("{f}.body"),
+                        "missing field (or `to_node`)",
+                    ));
+                }
+                (Some(b), None) if b.get_ref() == "ground" => Parent::Body(None),
+                (Some(b), None) => Parent::Body(Some(self.lookup(
+                    body_names,
+                    b,
+                    &format!("{f}.body"),
+                    "body",
+                )?)),
+                (None, Some(t)) => {
+                    let ft = format!("{f}.to_node");
+                    let m = self.lookup(node_names, t, &ft, "node")?;
+                    if m == node {
+                        return Err(self.err(t.span(), ft, "a node cannot be joined to itself"));
+                    }
+                    if kind == JointType::Rigid {
+                        return Err(self.err(j.kind.span(), format!("{f}.type"), "a rigid joint between two nodes is not supported: let the beams share one node"));
+                    }
+                    let gap = norm(sub(x0[node], x0[m]));
+                    if gap > 1e-9 * size {
+                        return Err(self.err(t.span(), ft, format!("node `{}` is {gap} away from `{}`: a hinge joins nodes at the same position", node_names[node], node_names[m])));
+                    }
+                    Parent::Node(m)
+                }
+            };
+            let hinge = match kind {
+                JointType::Rigid => {
+                    let why = "only used by hinge joints";
+                    self.forbid(&j.axis, &format!("{f}.axis"), why)?;
+                    for (v, k) in [
+                        (&j.stiffness, "stiffness"),
+                        (&j.damping, "damping"),
+                        (&j.lock_angle, "lock_angle"),
+                        (&j.lock_time, "lock_time"),
+                        (&j.initial_rate, "initial_rate"),
+                    ] {
+                        self.forbid(v, &format!("{f}.{k}"), why)?;
+                    }
+                    None
+                }
+                JointType::Hinge => {
+                    let fa = format!("{f}.axis");
+                    let axis = self.unit(
+                        self.required(&j.axis, span.clone(), &fa, " (a hinge needs an axis)")?,
+                        &fa,
+                    )?;
+                    let axis_local = match parent {
+                        Parent::Body(Some(b)) => mat_t_vec(&bodies[b].body.r0, axis),
+                        _ => axis,
+                    };
+                    let opt_nn = |v: &Option<Spanned<Num>>, k: &str| -> Result<Option<f64>> {
+                        v.as_ref()
+                            .map(|v| self.non_negative(v, &format!("{f}.{k}")))
+                            .transpose()
+                    };
+                    hinges.push(HingeDraft {
+                        name: name.clone(),
+                        axis_local,
+                        stiffness: opt_nn(&j.stiffness, "stiffness")?.unwrap_or(0.0),
+                        damping: opt_nn(&j.damping, "damping")?.unwrap_or(0.0),
+                        lock_angle: self.opt_num(&j.lock_angle, &format!("{f}.lock_angle"))?,
+                        lock_time: opt_nn(&j.lock_time, "lock_time")?,
+                        v0: self
+                            .opt_num(&j.initial_rate, &format!("{f}.initial_rate"))?
+                            .unwrap_or(0.0),
+                    });
+                    Some(hinges.len() - 1)
+                }
+            };
+            drafts.push(JointDraft {
+                node,
+                parent,
+                hinge,
+            });
+            names.push(name);
+            joint_hinge.push(hinge);
+        }
+        // node-to-node chains must end at a node that is not itself hinged to another
+        for (i, d) in drafts.iter().enumerate() {
+            let mut chain = vec![d.node];
+            let mut cur = d;
+            while let Parent::Node(m) = cur.parent {
+                chain.push(m);
+                if m == d.node {
+                    let path: Vec<&str> = chain.iter().map(|&n| node_names[n].as_str()).collect();
+                    let t = spec.joints[i]
+                        .get_ref()
+                        .to_node
+                        .as_ref()
+                        .map_or(spec.joints[i].span(), |t| t.span());
+                    return Err(self.err(
+                        t,
+                        format!("joints[{i}].to_node"),
+                        format!("joints form a cycle: {}", path.join(" -> ")),
+                    ));
+                }
+                match drafts.iter().find(|x| x.node == m) {
+                    Some(next) => cur = next,
+                    None => break,
+                }
+            }
+        }
+        Ok((drafts, hinges, names, joint_hinge))
+    }
+
+    fn sensors(
+        &self,
+        spec: &Spec,
+        node_names: &[String],
+        beams: &[Beam],
+        body_names: &[String],
+        joint_names: &[String],
+        joint_hinge: &[Option<usize>],
+    ) -> Result<Vec<Sensor>> {
+        let beam_names: Vec<String> = beams.iter().map(|b| b.name.clone()).collect();
+        let mut out: Vec<Sensor> = Vec::new();
+        for (i, ss) in spec.sensors.iter().enumerate() {
+            let f = format!("sensors[{i}]");
+            let span = ss.span();
+            let s = ss.get_ref();
+            let name = self.name(&s.name, &format!("{f}.name"))?;
+            if out.iter().any(|o| o.name == name) {
+                return Err(self.err(
+                    s.name.span(),
+                    format!("{f}.name"),
+                    format!("duplicate sensor name `{name}`"),
+                ));
+            }
+            let kind = *s.kind.get_ref();
+            let present = [
+                ("node", s.node.as_ref().map(|x| x.span())),
+                ("beam", s.beam.as_ref().map(|x| x.span())),
+                ("at", s.at.as_ref().map(|x| x.span())),
+                ("component", s.component.as_ref().map(|x| x.span())),
+                ("joint", s.joint.as_ref().map(|x| x.span())),
+                ("body", s.body.as_ref().map(|x| x.span())),
+                ("direction", s.direction.as_ref().map(|x| x.span())),
+            ];
+            let allowed: &[&str] = match kind {
+                SensorType::Node | SensorType::Position => &["node"],
+                SensorType::Section => &["beam", "at", "component"],
+                SensorType::Hinge => &["joint"],
+                SensorType::Body => &["body"],
+                SensorType::Direction => &["node", "direction"],
+                SensorType::Energy => &[],
+            };
+            for (k, sp) in present {
+                if let (Some(sp), false) = (sp, allowed.contains(&k)) {
+                    return Err(self.err(
+                        sp,
+                        format!("{f}.{k}"),
+                        format!("not used by sensor type `{}`", kind.as_str()),
+                    ));
+                }
+            }
+            let why = format!(
+                " (sensor type `{}` needs {})",
+                kind.as_str(),
+                allowed.join(", ")
+            );
+            let node = |fld: &Option<Spanned<String>>| -> Result<usize> {
+                let fk = format!("{f}.node");
+                self.lookup(
+                    node_names,
+                    self.required(fld, span.clone(), &fk, &why)?,
+                    &fk,
+                    "node",
+                )
+            };
+            let kind = match kind {
+                SensorType::Node => SensorKind::NodeDisplacement {
+                    node: node(&s.node)?,
+                },
+                SensorType::Position => SensorKind::NodePosition {
+                    node: node(&s.node)?,
+                },
+                SensorType::Direction => {
+                    let node = node(&s.node)?;
+                    let fd = format!("{f}.direction");
+                    let dir =
+                        self.unit(self.required(&s.direction, span.clone(), &fd, &why)?, &fd)?;
+                    SensorKind::NodeDirection { node, dir }
+                }
+                SensorType::Body => {
+                    let fb = format!("{f}.body");
+                    SensorKind::BodyPose {
+                        body: self.lookup(
+                            body_names,
+                            self.required(&s.body, span.clone(), &fb, &why)?,
+                            &fb,
+                            "body",
+                        )?,
+                    }
+                }
+                SensorType::Hinge => {
+                    let fj = format!("{f}.joint");
+                    let jn = self.required(&s.joint, span.clone(), &fj, &why)?;
+                    let j = self.lookup(joint_names, jn, &fj, "joint")?;
+                    let hinge = joint_hinge[j].ok_or_else(|| {
+                        self.err(
+                            jn.span(),
+                            &fj,
+                            format!("joint `{}` is rigid, not a hinge", jn.get_ref()),
+                        )
+                    })?;
+                    SensorKind::HingeAngle { hinge }
+                }
+                SensorType::Section => {
+                    let fb = format!("{f}.beam");
+                    let b = self.lookup(
+                        &beam_names,
+                        self.required(&s.beam, span.clone(), &fb, &why)?,
+                        &fb,
+                        "beam",
+                    )?;
+                    let fa = format!("{f}.at");
+                    let at_s = self.required(&s.at, span.clone(), &fa, &why)?;
+                    let at = self.num(at_s, &fa)?;
+                    if !(0.0..=1.0).contains(&at) {
+                        return Err(self.err(
+                            at_s.span(),
+                            fa,
+                            format!("must be in [0, 1] (fraction of the beam), is {at}"),
+                        ));
+                    }
+                    let elems = &beams[b].elements;
+                    let n = elems.len();
+                    // snap to the nearest element end or midpoint
+                    let m = (2.0 * at * n as f64).round() / 2.0;
+                    let k = (m.floor() as usize).min(n - 1);
+                    let (element, xi) = (elems[k], m - k as f64);
+                    match &s.component {
+                        None => SensorKind::Section { element, xi },
+                        Some(c) => {
+                            let component = SECTION_COMPONENTS
+                                .iter()
+                                .position(|x| x == c.get_ref())
+                                .ok_or_else(|| {
+                                    self.err(
+                                        c.span(),
+                                        format!("{f}.component"),
+                                        format!(
+                                            "unknown component `{}` (one of {})",
+                                            c.get_ref(),
+                                            SECTION_COMPONENTS.join(", ")
+                                        ),
+                                    )
+                                })?;
+                            SensorKind::SectionComponent {
+                                element,
+                                xi,
+                                component,
+                            }
+                        }
+                    }
+                }
+                SensorType::Energy => SensorKind::Energy,
+            };
+            out.push(Sensor { name, kind });
+        }
+        Ok(out)
+    }
+
+    fn solver(&self, spec: &Spec) -> Result<SolverSettings> {
+        let mut s = SolverSettings::default();
+        let Some(sp) = &spec.solver else {
+            return Ok(s);
+        };
+        let sp = sp.get_ref();
+        let f = |k: &str| format!("solver.{k}");
+        if let Some(v) = &sp.t_end {
+            s.t_end = self.positive(v, &f("t_end"))?;
+        }
+        if let Some(v) = &sp.dt {
+            s.dt = self.positive(v, &f("dt"))?;
+        }
+        if let Some(v) = &sp.output_dt {
+            s.output_dt = self.non_negative(v, &f("output_dt"))?;
+        }
+        if let Some(v) = &sp.rho_inf {
+            s.rho_inf = self.num(v, &f("rho_inf"))?;
+            if !(0.0..=1.0).contains(&s.rho_inf) {
+                return Err(self.err(
+                    v.span(),
+                    f("rho_inf"),
+                    format!("must be in [0, 1], is {}", s.rho_inf),
+                ));
+            }
+        }
+        if let Some(v) = &sp.tol {
+            s.tol = self.positive(v, &f("tol"))?;
+        }
+        if let Some(v) = &sp.max_iter {
+            s.max_iter = self.integer(v, &f("max_iter"), 1)?;
+        }
+        if let Some(v) = &sp.dt_min {
+            s.dt_min = self.positive(v, &f("dt_min"))?;
+        }
+        if let Some(v) = &sp.load_steps {
+            s.load_steps = self.integer(v, &f("load_steps"), 1)?;
+        }
+        if let Some(v) = &sp.rayleigh_alpha {
+            s.rayleigh_alpha = self.non_negative(v, &f("rayleigh_alpha"))?;
+        }
+        if let Some(v) = &sp.rayleigh_beta {
+            s.rayleigh_beta = self.non_negative(v, &f("rayleigh_beta"))?;
+        }
+        Ok(s)
+    }
+}
+
+/// Saint-Venant torsion constant of a b × h rectangle (series approximation, within
+/// about 0.5 % for all aspect ratios).
+fn rect_torsion(b: f64, h: f64) -> f64 {
+    let (a, c) = if b >= h { (b, h) } else { (h, b) };
+    a * c.powi(3) * (1.0 / 3.0 - 0.21 * (c / a) * (1.0 - c.powi(4) / (12.0 * a.powi(4))))
+}
+
+/// The global axis making the largest angle with `x` (ties: x before y before z).
+fn least_parallel_axis(x: Vec3) -> Vec3 {
+    let mut k = 0;
+    for i in 1..3 {
+        if x[i].abs() < x[k].abs() {
+            k = i;
+        }
+    }
+    let mut e = [0.0; 3];
+    e[k] = 1.0;
+    e
+}
+
+/// Diagonal of the bounding box of the user's nodes and bodies: the length scale for
+/// coincidence tolerances.
+fn model_size(x0: &[Vec3], bodies: &[BodyDraft]) -> f64 {
+    let pts = x0.iter().copied().chain(bodies.iter().map(|b| b.body.x0));
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in pts {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let d = norm(sub(hi, lo));
+    if d.is_finite() && d > 0.0 {
+        d
+    } else {
+        1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CANTILEVER: &str = include_str!("../../models/cantilever.toml");
+    const BEND45: &str = include_str!("../../models/bend45.toml");
+
+    fn compile(text: &str) -> Model {
+        compile_str(text, "t.toml", &[]).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn fails(text: &str) -> ModelError {
+        compile_str(text, "t.toml", &[]).expect_err("should not compile")
+    }
+
+    fn close(a: Vec3, b: Vec3, tol: f64) -> bool {
+        norm(sub(a, b)) <= tol
+    }
+
+    /// a straight free-free beam and whatever `extra` adds
+    fn with_beam(extra: &str) -> String {
+        format!(
+            "[sections.s]\nEA = 1\nEIy = 1\nEIz = 1\nGJ = 1\nrhoA = 1\n\
+             [[nodes]]\nname = \"a\"\nposition = [0, 0, 0]\n\
+             [[nodes]]\nname = \"b\"\nposition = [2, 0, 0]\n\
+             [[beams]]\nname = \"bm\"\nfrom = \"a\"\nto = \"b\"\nelements = 2\nsection = \"s\"\n{extra}"
+        )
+    }
+
+    #[test]
+    fn cantilever_mesh_dofs_and_sensors() {
+        let m = compile(CANTILEVER);
+        assert_eq!(m.name, "cantilever");
+        assert_eq!(m.node_names.len(), 9);
+        assert_eq!(m.node_names[2], "beam:1");
+        assert_eq!(m.node_names[8], "beam:7");
+        assert!(close(m.x0[2], [0.125, 0.0, 0.0], 1e-15));
+        assert_eq!(m.elements.len(), 8);
+        assert_eq!(m.beams[0].nodes[0], 0);
+        assert_eq!(*m.beams[0].nodes.last().unwrap(), 1);
+        assert_eq!((m.elements[0].n1, m.elements[0].n2), (0, 2));
+        assert_eq!((m.elements[7].n1, m.elements[7].n2), (8, 1));
+        assert_eq!(
+            m.elements[3].frame0, I3,
+            "beam along x: local axes are global"
+        );
+        assert_eq!(m.elements[0].props.eiy, 100.0);
+        assert!(matches!(
+            m.node_kin[0],
+            NodeKin::OnBody {
+                body: None,
+                hinge: None,
+                ..
+            }
+        ));
+        assert!(matches!(
+            m.node_kin[1],
+            NodeKin::Free {
+                trans: [Some(0), Some(1), Some(2)],
+                spin: Some(0)
+            }
+        ));
+        assert_eq!(m.spins[0].dofs, [3, 4, 5]);
+        assert_eq!(m.dofs.len(), 48);
+        assert_eq!(m.n_eq, 48);
+        assert_eq!(m.dofs[0].name, "tip.x");
+        assert_eq!(m.dofs[5].name, "tip.rz");
+        assert!(m.dofs.iter().enumerate().all(|(i, d)| d.eq == Some(i)));
+        assert_eq!(m.sensors[0].kind, SensorKind::NodeDisplacement { node: 1 });
+        assert_eq!(
+            m.sensors[1].kind,
+            SensorKind::SectionComponent {
+                element: 0,
+                xi: 0.0,
+                component: 4
+            }
+        );
+        assert_eq!(m.solver.dt, 1e-3);
+        assert_eq!(m.params[0], ("L".to_string(), 1.0));
+        assert_eq!(m.source, CANTILEVER);
+        assert_eq!(m.path, "t.toml");
+    }
+
+    #[test]
+    fn overrides_replace_parameters_and_unknown_ones_fail() {
+        let ov = [
+            ("elements".to_string(), 4.0),
+            ("P".to_string(), 5.0),
+            ("L".to_string(), 2.0),
+        ];
+        let m = compile_str(CANTILEVER, "c.toml", &ov).unwrap();
+        assert_eq!(m.elements.len(), 4);
+        assert_eq!(m.loads[0].force, [0.0, 0.0, 5.0]);
+        assert_eq!(m.x0[1], [2.0, 0.0, 0.0]);
+        assert_eq!(m.param("P"), Some(5.0));
+        let e = compile_str(CANTILEVER, "c.toml", &[("Q".to_string(), 1.0)]).unwrap_err();
+        assert!(
+            e.to_string().contains("`--set Q`") && e.to_string().contains("Q"),
+            "{e}"
+        );
+        // a derived parameter follows its override
+        let m = compile_str(BEND45, "b.toml", &[("E".to_string(), 2.0e7)]).unwrap();
+        assert_eq!(m.param("G"), Some(1.0e7));
+    }
+
+    #[test]
+    fn parse_set_accepts_numbers_and_constant_expressions() {
+        assert_eq!(parse_set("P=10").unwrap(), ("P".to_string(), 10.0));
+        assert_eq!(parse_set(" dt = 1e-4 ").unwrap(), ("dt".to_string(), 1e-4));
+        assert!((parse_set("w=2*pi").unwrap().1 - std::f64::consts::TAU).abs() < 1e-15);
+        assert!(parse_set("P").is_err());
+        assert!(parse_set("=3").is_err());
+        assert!(parse_set("P=abc").is_err());
+    }
+
+    #[test]
+    fn bend45_nodes_lie_on_the_arc() {
+        let m = compile(BEND45);
+        let c = [0.0, 100.0, 0.0];
+        assert_eq!(m.x0.len(), 9);
+        for x in &m.x0 {
+            assert!((norm(sub(*x, c)) - 100.0).abs() < 1e-9, "{x:?}");
+        }
+        let tip = [100.0 * (PI_4).sin(), 100.0 - 100.0 * (PI_4).cos(), 0.0];
+        assert!(close(m.x0[1], tip, 1e-12));
+        let chord = |e: &Element| norm(sub(m.x0[e.n2], m.x0[e.n1]));
+        let l0 = chord(&m.elements[0]);
+        assert!((l0 - 2.0 * 100.0 * (PI_4 / 16.0).sin()).abs() < 1e-9);
+        for e in &m.elements {
+            assert!((chord(e) - l0).abs() < 1e-9);
+            let y = col(&e.frame0, 1);
+            let mid = scale(add(m.x0[e.n1], m.x0[e.n2]), 0.5);
+            assert!(
+                dot(y, normalize(sub(c, mid))) > 1.0 - 1e-12,
+                "local y points to the centre"
+            );
+            assert!(close(col(&e.frame0, 2), [0.0, 0.0, 1.0], 1e-12));
+        }
+        assert!((m.elements[0].props.gj - 5.0e6 * 0.1406).abs() < 1e-6);
+        assert_eq!(m.sensors[0].kind, SensorKind::NodePosition { node: 1 });
+        assert_eq!(m.solver.load_steps, 20);
+    }
+    const PI_4: f64 = std::f64::consts::FRAC_PI_4;
+
+    #[test]
+    fn section_shapes() {
+        let text = |shape: &str| {
+            format!(
+                "[materials.m]\nE = 2\nG = 1\ndensity = 3\n[sections.s]\n{shape}\nmaterial = \"m\"\n\
+                 [[nodes]]\nname = \"a\"\nposition = [0, 0, 0]\n[[nodes]]\nname = \"b\"\nposition = [1, 0, 0]\n\
+                 [[beams]]\nname = \"bm\"\nfrom = \"a\"\nto = \"b\"\nelements = 1\nsection = \"s\"\n"
+            )
+        };
+        let pi = std::f64::consts::PI;
+        let p = compile(&text(
+            "shape = \"tube\"\nouter_diameter = 2\ninner_diameter = 1",
+        ))
+        .elements[0]
+            .props;
+        let i = pi * 15.0 / 64.0;
+        assert!((p.ea - 2.0 * pi * 3.0 / 4.0).abs() < 1e-12);
+        assert!((p.eiy - 2.0 * i).abs() < 1e-12 && (p.eiz - 2.0 * i).abs() < 1e-12);
+        assert!((p.gj - 2.0 * i).abs() < 1e-12);
+        assert!(
+            (p.rho_a - 3.0 * pi * 3.0 / 4.0).abs() < 1e-12 && (p.rho_iy - 3.0 * i).abs() < 1e-12
+        );
+        let p = compile(&text("shape = \"circle\"\ndiameter = 2")).elements[0].props;
+        assert!((p.eiy - 2.0 * pi / 4.0).abs() < 1e-12);
+        let p = compile(&text("shape = \"rectangle\"\nwidth = 2\nheight = 1")).elements[0].props;
+        assert_eq!(p.ea, 4.0);
+        assert!(
+            (p.eiy - 2.0 * 2.0 / 12.0).abs() < 1e-12,
+            "about y: b h^3/12"
+        );
+        assert!(
+            (p.eiz - 2.0 * 8.0 / 12.0).abs() < 1e-12,
+            "about z: h b^3/12"
+        );
+        assert!((p.rho_iz - 3.0 * 8.0 / 12.0).abs() < 1e-12);
+        let j = 2.0 * (1.0 / 3.0 - 0.21 * 0.5 * (1.0 - 1.0 / (12.0 * 16.0)));
+        assert!((p.gj - j).abs() < 1e-12);
+        // square: the classic 0.1406 a^4 within the series' accuracy
+        assert!((rect_torsion(1.0, 1.0) - 0.1406).abs() < 3e-4);
+        assert!((rect_torsion(1.0, 10.0) - rect_torsion(10.0, 1.0)).abs() < 1e-12);
+
+        let e = fails(&text(
+            "shape = \"tube\"\nouter_diameter = 1\ninner_diameter = 1",
+        ));
+        assert_eq!(e.field.as_deref(), Some("sections.s.inner_diameter"));
+        let e = fails(&text("shape = \"circle\"\ndiameter = 1\nEA = 3"));
+        assert_eq!(e.field.as_deref(), Some("sections.s.EA"));
+        let e = fails(&text("shape = \"circle\"\nwidth = 1"));
+        assert_eq!(e.field.as_deref(), Some("sections.s.width"));
+        let e = fails(&text("shape = \"rectangle\"\nwidth = 1"));
+        assert_eq!(e.field.as_deref(), Some("sections.s.height"));
+    }
+
+    #[test]
+    fn body_with_driven_rotation_and_hinged_beam() {
+        let m = compile(&with_beam(
+            "[parameters]\nw = 2\n\
+             [[bodies]]\nname = \"hub\"\nposition = [0, 0, 0]\naxes = [[0, 1, 0], [-1, 0, 0]]\nmass = 3\ninertia = [1, 2, 3]\n\
+             [[bodies.dofs]]\ntype = \"translation\"\naxis = [0, 0, 2]\ninitial = 0.5\n\
+             [[bodies.dofs]]\ntype = \"rotation\"\naxis = [0, 0, 1]\ndrive = \"w*t^2\"\n\
+             [[joints]]\nname = \"flap\"\nnode = \"a\"\nbody = \"hub\"\ntype = \"hinge\"\naxis = [0, 1, 0]\nstiffness = 5\ninitial_rate = 0.25\n\
+             [[sensors]]\nname = \"h\"\ntype = \"hinge\"\njoint = \"flap\"\n",
+        ));
+        // node dofs: b (6) and bm:1 (6); then hub's two; then the hinge angle
+        assert_eq!(m.dofs.len(), 15);
+        assert_eq!(m.dofs[12].name, "hub.dofs[0]");
+        assert_eq!(m.dofs[12].q0, 0.5);
+        assert!(matches!(m.dofs[13].mode, DofMode::Driven(_)));
+        assert_eq!(m.dofs[13].eq, None);
+        assert_eq!(m.dofs[14].name, "flap.angle");
+        assert_eq!(m.dofs[14].eq, Some(13));
+        assert_eq!(m.dofs[14].v0, 0.25);
+        assert_eq!(m.n_eq, 14);
+        let body = &m.bodies[0];
+        assert_eq!(
+            body.inertia,
+            [[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0]]
+        );
+        assert_eq!(
+            body.chain,
+            vec![
+                ChainLink::Translate {
+                    dof: 12,
+                    dir: [0.0, 0.0, 1.0]
+                },
+                ChainLink::RotateFixedAxis {
+                    dof: 13,
+                    axis: [0.0, 0.0, 1.0]
+                },
+            ]
+        );
+        assert_eq!(col(&body.r0, 0), [0.0, 1.0, 0.0]);
+        assert_eq!(col(&body.r0, 2), [0.0, 0.0, 1.0]);
+        let h = &m.hinges[0];
+        assert_eq!(h.dof, 14);
+        assert_eq!(h.stiffness, 5.0);
+        // global y is the body's x axis
+        assert!(close(h.axis_local, [1.0, 0.0, 0.0], 1e-15));
+        match &m.node_kin[0] {
+            NodeKin::OnBody {
+                body: Some(0),
+                hinge: Some(0),
+                s,
+                r_rel,
+            } => {
+                assert_eq!(*s, [0.0; 3]);
+                assert_eq!(
+                    mat_mul(&body.r0, r_rel),
+                    I3,
+                    "initial node rotation is identity"
+                );
+            }
+            k => panic!("{k:?}"),
+        }
+        assert_eq!(m.sensors[0].kind, SensorKind::HingeAngle { hinge: 0 });
+        if let DofMode::Driven(f) = &m.dofs[13].mode {
+            assert_eq!(f.eval(1.5), [4.5, 6.0, 4.0]);
+        }
+    }
+
+    #[test]
+    fn free_rotation_body_and_node_to_node_hinge() {
+        let m = compile(&with_beam(
+            "[[nodes]]\nname = \"c\"\nposition = [2, 0, 0]\n\
+             [[bodies]]\nname = \"sat\"\nposition = [1, 1, 1]\nmass = 1\ninertia = [[2, 0.1, 0], [0.1, 2, 0], [0, 0, 1]]\n\
+             [[bodies.dofs]]\ntype = \"free_rotation\"\ninitial_rate = [0, 0, 3]\n\
+             [[joints]]\nname = \"j\"\nnode = \"c\"\nto_node = \"b\"\ntype = \"hinge\"\naxis = [0, 0, 5]\n\
+             [[joints]]\nname = \"g\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n",
+        ));
+        assert_eq!(m.node_names, ["a", "b", "c", "bm:1"]);
+        assert!(matches!(
+            m.node_kin[2],
+            NodeKin::OnNode {
+                master: 1,
+                hinge: 0,
+                r_rel: I3
+            }
+        ));
+        assert!(matches!(
+            m.node_kin[0],
+            NodeKin::OnBody {
+                body: None,
+                hinge: None,
+                s: [0.0, 0.0, 0.0],
+                r_rel: I3
+            }
+        ));
+        assert_eq!(m.hinges[0].axis_local, [0.0, 0.0, 1.0]);
+        // b and bm:1 free (12 dofs, spins 0 and 1), then the body's spin, then the hinge
+        assert_eq!(m.spins.len(), 3);
+        assert_eq!(m.spins[2].dofs, [12, 13, 14]);
+        assert_eq!(m.spins[2].omega0, [0.0, 0.0, 3.0]);
+        assert_eq!(
+            m.bodies[0].chain[1],
+            ChainLink::SpinComponent {
+                dof: 13,
+                spin: 2,
+                k: 1
+            }
+        );
+        assert_eq!(m.hinges[0].dof, 15);
+        assert_eq!(m.n_eq, 16);
+    }
+
+    #[test]
+    fn joint_and_body_errors() {
+        let e = fails(&with_beam(
+            "[[nodes]]\nname = \"c\"\nposition = [2, 0, 1e-3]\n\
+             [[joints]]\nname = \"j\"\nnode = \"c\"\nto_node = \"b\"\ntype = \"hinge\"\naxis = [0, 0, 1]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("joints[0].to_node"), "{e}");
+        let e = fails(&with_beam(
+            "[[nodes]]\nname = \"c\"\nposition = [2, 0, 0]\n\
+             [[joints]]\nname = \"j\"\nnode = \"c\"\nto_node = \"b\"\ntype = \"hinge\"\naxis = [0, 0, 1]\n\
+             [[joints]]\nname = \"k\"\nnode = \"b\"\nto_node = \"c\"\ntype = \"hinge\"\naxis = [0, 0, 1]\n",
+        ));
+        assert!(e.message.contains("cycle"), "{e}");
+        let e = fails(&with_beam(
+            "[[supports]]\nnode = \"a\"\ntype = \"clamped\"\n\
+             [[joints]]\nname = \"j\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("joints[0].node"));
+        let e = fails(&with_beam(
+            "[[joints]]\nname = \"j\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n\
+             [[joints]]\nname = \"k\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\n",
+        ));
+        assert!(e.message.contains("already has joint"), "{e}");
+        let e = fails(&with_beam(
+            "[[nodes]]\nname = \"lone\"\nposition = [5, 5, 5]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("nodes[2].name"), "{e}");
+        let e = fails(&with_beam(
+            "[[joints]]\nname = \"j\"\nnode = \"a\"\nbody = \"ground\"\ntype = \"rigid\"\naxis = [1, 0, 0]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("joints[0].axis"));
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\nmass = 1\n\
+             [[bodies.dofs]]\ntype = \"rotation\"\naxis = [0, 0, 1]\n\
+             [[bodies.dofs]]\ntype = \"translation\"\naxis = [0, 0, 1]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("bodies[0].dofs[1].type"));
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\n[[bodies.dofs]]\ntype = \"rotation\"\naxis = [0, 0, 1]\ndrive = \"t\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("bodies[0].mass"));
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\nmass = 1\ninertia = [[1, 2, 0], [0, 1, 0], [0, 0, 1]]\n",
+        ));
+        assert!(e.message.contains("not symmetric"), "{e}");
+        let e = fails(&with_beam(
+            "[[bodies]]\nname = \"h\"\nmass = 1\n[[bodies.dofs]]\ntype = \"translation\"\naxis = [1, 0, 0]\ndrive = \"t\"\ninitial = 1\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("bodies[0].dofs[0].initial"));
+    }
+
+    #[test]
+    fn sensor_and_beam_errors() {
+        let e = fails(&with_beam("[[sensors]]\nname = \"s\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.5\ncomponent = \"Mx\"\n"));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].component"));
+        let e = fails(&with_beam(
+            "[[sensors]]\nname = \"s\"\ntype = \"section\"\nbeam = \"bm\"\nat = 1.5\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].at"));
+        let e = fails(&with_beam(
+            "[[sensors]]\nname = \"s\"\ntype = \"node\"\nnode = \"a\"\nbeam = \"bm\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].beam"));
+        let e = fails(&with_beam("[[sensors]]\nname = \"s\"\ntype = \"node\"\n"));
+        assert_eq!(e.field.as_deref(), Some("sensors[0].node"));
+        let e = fails(&with_beam("[[sensors]]\nname = \"s\"\ntype = \"energy\"\n[[sensors]]\nname = \"s\"\ntype = \"energy\"\n"));
+        assert!(e.message.contains("duplicate sensor"), "{e}");
+        let e = fails(&with_beam(
+            "[[sensors]]\nname = \"s\"\ntype = \"node\"\nnode = \"nowhere\"\n",
+        ));
+        assert!(e.message.contains("`nowhere`"), "{e}");
+        let e = fails(&with_beam(
+            "[[loads]]\nnode = \"bm:9\"\nforce = [1, 0, 0]\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("loads[0].node"));
+        let e = fails(&with_beam("[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 1\nsection = \"s\"\norientation = [3, 0, 0]\n"));
+        assert_eq!(e.field.as_deref(), Some("beams[1].orientation"));
+        let e = fails(&with_beam(
+            "[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 2.5\nsection = \"s\"\n",
+        ));
+        assert_eq!(e.field.as_deref(), Some("beams[1].elements"));
+        let e = fails(&with_beam("[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 1\nsection = \"s\"\narc_center = [0.5, 5, 0]\n"));
+        assert_eq!(e.field.as_deref(), Some("beams[1].arc_center"));
+        assert!(e.message.contains("equidistant"), "{e}");
+        let e = fails(&with_beam("[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"b\"\nelements = 3\nsection = \"s\"\narc_center = [1, 0, 0]\n"));
+        assert!(e.message.contains("collinear"), "{e}");
+        let e = fails(&with_beam(
+            "[[beams]]\nname = \"o\"\nfrom = \"a\"\nto = \"a\"\nelements = 3\nsection = \"s\"\n",
+        ));
+        assert!(e.message.contains("zero-length"), "{e}");
+    }
+
+    #[test]
+    fn section_sensor_snaps_to_element_ends_and_midpoints() {
+        let m = compile(&with_beam(
+            "[[sensors]]\nname = \"s0\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.2\n\
+             [[sensors]]\nname = \"s1\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.45\n\
+             [[sensors]]\nname = \"s2\"\ntype = \"section\"\nbeam = \"bm\"\nat = 1\n\
+             [[sensors]]\nname = \"d\"\ntype = \"direction\"\nnode = \"b\"\ndirection = [0, 2, 0]\n\
+             [[sensors]]\nname = \"e\"\ntype = \"energy\"\n",
+        ));
+        let kinds: Vec<_> = m.sensors.iter().map(|s| s.kind.clone()).collect();
+        assert_eq!(
+            kinds[0],
+            SensorKind::Section {
+                element: 0,
+                xi: 0.5
+            }
+        );
+        assert_eq!(
+            kinds[1],
+            SensorKind::Section {
+                element: 1,
+                xi: 0.0
+            }
+        );
+        assert_eq!(
+            kinds[2],
+            SensorKind::Section {
+                element: 1,
+                xi: 1.0
+            }
+        );
+        assert_eq!(
+            kinds[3],
+            SensorKind::NodeDirection {
+                node: 1,
+                dir: [0.0, 1.0, 0.0]
+            }
+        );
+        assert_eq!(kinds[4], SensorKind::Energy);
+        assert_eq!(m.sensor_index("e"), Some(4));
+    }
+}
