@@ -63,6 +63,8 @@ pub struct Assembler {
     /// dof → equation (None for driven dofs)
     pub eq: Vec<Option<usize>>,
     pub n_eq: usize,
+    /// equations that are angles (spins, hinges, body rotations): Newton limits their step
+    pub rot_eq: Vec<bool>,
 }
 
 /// Scalars gathered during assembly.
@@ -81,10 +83,60 @@ impl Assembler {
             .iter()
             .map(|e| ElemData::new(e.props, e.frame0, model.x0[e.n1], model.x0[e.n2]))
             .collect();
+        let mut rot_eq = vec![false; model.n_eq];
+        let mut mark = |d: usize| {
+            if let Some(e) = model.dofs[d].eq {
+                rot_eq[e] = true;
+            }
+        };
+        for sp in &model.spins {
+            sp.dofs.iter().for_each(|&d| mark(d));
+        }
+        for h in &model.hinges {
+            mark(h.dof);
+        }
+        for b in &model.bodies {
+            for l in &b.chain {
+                if let crate::model::ChainLink::RotateFixedAxis { dof, .. } = l {
+                    mark(*dof);
+                }
+            }
+        }
         Assembler {
             elems,
             eq: model.dofs.iter().map(|d| d.eq).collect(),
             n_eq: model.n_eq,
+            rot_eq,
+        }
+    }
+
+    /// Every element within its small-deformation range (see
+    /// [`element::deformation_in_range`]).
+    pub fn deformation_in_range(&self, model: &Model, s: &State) -> bool {
+        model.elements.iter().zip(&self.elems).all(|(el, ed)| {
+            element::deformation_in_range(
+                ed,
+                &ElemState {
+                    u1: s.node_u[el.n1],
+                    r1: s.node_r[el.n1],
+                    u2: s.node_u[el.n2],
+                    r2: s.node_r[el.n2],
+                },
+            )
+        })
+    }
+
+    /// Scale a Newton increment so no angle changes by more than `max_angle` radians:
+    /// full steps across large rotations land on spurious equilibria.
+    pub fn limit_rotation_step(&self, dx: &mut [f64], max_angle: f64) {
+        let big = dx
+            .iter()
+            .zip(&self.rot_eq)
+            .filter(|(_, r)| **r)
+            .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
+        if big > max_angle {
+            let f = max_angle / big;
+            dx.iter_mut().for_each(|x| *x *= f);
         }
     }
 

@@ -85,50 +85,78 @@ fn end_moment_two_pi_ei_over_l_rolls_the_cantilever_into_a_full_circle() {
         PROPS,
         [0.0; 3],
         [0.0, pi * ei, 0.0],
-        "load_steps = 8",
+        "",
     );
     let sol = solve_statics(&half).unwrap();
     let x = sensor(&half, &sol.sensors, "tipx");
-    assert!(x[0].abs() < 2e-3 && (x[2] + 2.0 / pi).abs() < 2e-3, "semicircle tip {x:?}");
+    // measured (−0.0016, 0, −0.63585) against (0, 0, −0.63662) with 32 elements
+    assert!(x[0].abs() < 3e-3 && (x[2] + 2.0 / pi).abs() < 3e-3, "semicircle tip {x:?}");
     let tip = sensor(&half, &sol.sensors, "tip");
-    assert!((tip[4].abs() - pi).abs() < 1e-6, "tip rotation {}", tip[4]);
+    // O(h²): measured 0.087, 0.021, 0.0051, 0.0013 rad for 8, 16, 32, 64 elements
+    assert!((tip[4].abs() - pi).abs() < 0.01, "tip rotation {}", tip[4]);
 
-    let full = straight_beam(
-        "clamped",
-        32,
-        PROPS,
-        [0.0; 3],
-        [0.0, 2.0 * pi * ei, 0.0],
-        "load_steps = 16",
-    );
-    let sol = solve_statics(&full).unwrap();
-    let x = sensor(&full, &sol.sensors, "tipx");
-    let gap = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
-    // 32 elements: chord discretisation of the circle, measured gap ~1e-3 L
-    assert!(gap < 5e-3, "tip should return to the root, gap {gap}");
-    // a full turn: the rotation matrix is back to identity (rotation vector ~0 mod 2π)
-    let tip = sensor(&full, &sol.sensors, "tip");
-    let r = (tip[3] * tip[3] + tip[4] * tip[4] + tip[5] * tip[5]).sqrt();
-    assert!(r < 1e-6, "tip rotation vector {r} (2π ≡ 0)");
+    let gap_and_rot = |n: usize| {
+        let full = straight_beam("clamped", n, PROPS, [0.0; 3], [0.0, 2.0 * pi * ei, 0.0], "");
+        let sol = solve_statics(&full).unwrap();
+        let x = sensor(&full, &sol.sensors, "tipx");
+        let tip = sensor(&full, &sol.sensors, "tip");
+        (
+            (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt(),
+            (tip[3] * tip[3] + tip[4] * tip[4] + tip[5] * tip[5]).sqrt(),
+        )
+    };
+    let (g32, r32) = gap_and_rot(32);
+    let (g64, r64) = gap_and_rot(64);
+    eprintln!("roll-up gap: 32 el {g32:.2e} L, 64 el {g64:.2e} L; rotation residue {r32:.2e}, {r64:.2e} rad");
+    // the gap is the O(h²) chord error of the circle: it must quarter per halving and
+    // be 0.16 % of L at 64 elements (measured)
+    assert!(g32 / g64 > 3.0 && g64 < 2.5e-3, "gaps {g32} {g64}");
+    // a full turn: the tip frame is back to the identity (rotation vector 0 ≡ 2π), up to
+    // the same O(h²) error in the turned angle (measured 0.041 and 0.010 rad)
+    assert!(r32 / r64 > 3.0 && r64 < 0.015, "tip rotation residues {r32} {r64} rad");
 }
 
 #[test]
-fn bend45_tip_matches_published_positions() {
-    // Simo & Vu-Quoc 8 elements; converged (32 elements, another code) at P = 600.
+fn bend45_tip_converges_quadratically_to_the_published_converged_position() {
+    // references.md §6. Converged (32 elements, another code) at P = 600:
+    // (46.90, 15.56, 53.60), printed to 0.01. Our 64-element solution is within 0.02 of
+    // the 128-element one (O(h²): the change quarters per halving), so 0.05 is the
+    // printed digits plus our discretisation error.
+    let tip = |n: f64| {
+        let m = shipped("bend45.toml", &[("P", 600.0), ("elements", n)]);
+        let sol = solve_statics(&m).unwrap();
+        sensor(&m, &sol.sensors, "tip").to_vec()
+    };
+    let t16 = tip(16.0);
+    let t32 = tip(32.0);
+    let t64 = tip(64.0);
+    let want = [46.90, 15.56, 53.60];
+    for k in 0..3 {
+        assert!((t64[k] - want[k]).abs() < 0.05, "64 elements: {t64:?} vs {want:?}");
+    }
+    let d1 = (t32[2] - t16[2]).abs();
+    let d2 = (t64[2] - t32[2]).abs();
+    eprintln!("bend45 P=600 z: 16 el {:.4}, 32 el {:.4}, 64 el {:.4}, ratio {:.2}", t16[2], t32[2], t64[2], d1 / d2);
+    assert!(d1 / d2 > 3.0, "convergence ratio {} (second order expects ~4)", d1 / d2);
+}
+
+#[test]
+fn bend45_eight_elements_agree_with_simo_vu_quoc_at_three_loads() {
+    // Simo & Vu-Quoc's 8-element values use a different (geometrically exact) element,
+    // whose discretisation error differs from ours by up to ~0.55 at this mesh (our
+    // 8-element error against the converged answer is 0.27 in z); 0.8 = 1.3% of the
+    // tip's 60-unit displacement.
     let cases = [
-        (8, 300.0, [58.84, 22.33, 40.08]),
-        (8, 450.0, [52.32, 18.62, 48.39]),
-        (8, 600.0, [47.23, 15.79, 53.37]),
-        (32, 600.0, [46.90, 15.56, 53.60]),
+        (300.0, [58.84, 22.33, 40.08]),
+        (450.0, [52.32, 18.62, 48.39]),
+        (600.0, [47.23, 15.79, 53.37]),
     ];
-    for (n, p, want) in cases {
-        let m = shipped("bend45.toml", &[("P", p), ("elements", n as f64)]);
+    for (p, want) in cases {
+        let m = shipped("bend45.toml", &[("P", p), ("elements", 8.0)]);
         let sol = solve_statics(&m).unwrap();
         let x = sensor(&m, &sol.sensors, "tip");
         let err = (0..3).map(|k| (x[k] - want[k]).abs()).fold(0.0, f64::max);
-        eprintln!("bend45 P={p} {n} el: tip {x:?} vs {want:?}: max error {err:.3}");
-        // published values differ between codes by ~0.3 (element formulation); 0.6 is 1%
-        // of the tip displacement
-        assert!(err < 0.6, "P={p}, {n} elements: {x:?} vs {want:?}");
+        eprintln!("bend45 P={p} 8 el: tip {x:?} vs {want:?}: max difference {err:.3}");
+        assert!(err < 0.8, "P={p}: {x:?} vs {want:?}");
     }
 }

@@ -8,7 +8,9 @@
 //!
 //! Kinematics (paper eqs. 5-10): the convected frame T_C has X_C along the chord
 //! node 1 → node 2 and Y_C in the plane of X_C and node 1's y axis; deformation angles
-//! φ_xi = t_c3·t_i2, φ_yi = t_c1·t_i3, φ_zi = t_c2·t_i1. Internal forces come from the
+//! from D_i = T_Cᵀ T_i, taken from its skew part (φ_xi = (t_c3·t_i2 − t_c2·t_i3)/2, …),
+//! which equals the paper's single-entry form (eqs. 5-7) to first order and is exact to
+//! second order (see `kinematics`). Internal forces come from the
 //! Bernoulli strain energy (eq. 21) with cubic Hermite bending, linear torsion and the
 //! chord stretch, computed cancellation-free as (2 X·d + d·d)/(|X+d| + |X|).
 //!
@@ -100,11 +102,18 @@ pub fn kinematics<R: Real>(
         [e[1], tc2[1], tc3[1]],
         [e[2], tc2[2], tc3[2]],
     ];
+    // The paper reads each angle from one entry of D = T_Cᵀ T_i (eqs. 5-7); that is exact
+    // to first order only, and its second-order error (a bending-bending product leaking
+    // into the twist) accumulates over a curved mesh into an O(h) global error (45° bend:
+    // first-order convergence). The skew part of D, (D − Dᵀ)/2 = sin θ · axis, is exact to
+    // second order and restores O(h²) convergence; to first order it is the paper's angle.
+    let half = R::cst(0.5);
     let ang = |t: &M3<R>| {
+        let (t1, t2, t3) = (mcol(t, 0), mcol(t, 1), mcol(t, 2));
         [
-            vdot(tc3, mcol(t, 1)),
-            vdot(e, mcol(t, 2)),
-            vdot(tc2, mcol(t, 0)),
+            half * (vdot(tc3, t2) - vdot(tc2, t3)),
+            half * (vdot(e, t3) - vdot(tc3, t1)),
+            half * (vdot(tc2, t1) - vdot(e, t2)),
         ]
     };
     let a1 = ang(t1);
@@ -213,6 +222,18 @@ fn unit(j: usize) -> Vec12 {
 pub fn deformation(e: &ElemData, s: &ElemState) -> Kin<f64> {
     let (t1, t2) = node_frames(e, s);
     kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2)
+}
+
+/// Whether both node frames stay within the element's small-deformation range of the
+/// convected frame: every diagonal entry of D_i = T_Cᵀ T_i above cos 60°. Beyond it the
+/// deformation angles (sines) stop identifying the rotation, e.g. a node flipped by π
+/// looks undeformed, so a Newton iterate there is a spurious equilibrium, not a solution.
+pub fn deformation_in_range(e: &ElemData, s: &ElemState) -> bool {
+    let (t1, t2) = node_frames(e, s);
+    let k = kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    [t1, t2].iter().all(|t| {
+        (0..3).all(|j| crate::math::dot(mcol(&k.tc, j), crate::math::col(t, j)) > 0.5)
+    })
 }
 
 /// Strain energy of the current state.

@@ -225,6 +225,9 @@ impl<'m> Integrator<'m> {
                 return Ok(None);
             }
             if res <= model.solver.tol * info.force_scale.max(f64::MIN_POSITIVE) || res == 0.0 {
+                if !self.asm.deformation_in_range(model, &s) {
+                    return Ok(None);
+                }
                 // converged: commit
                 let mut aux_new = aux0.clone();
                 for (d, dof) in model.dofs.iter().enumerate() {

@@ -25,6 +25,9 @@ pub struct StaticsReport {
     pub rejected_steps: usize,
 }
 
+/// Largest angle change of one Newton iteration [rad].
+pub const MAX_NEWTON_ANGLE: f64 = 0.5;
+
 /// Newton at a fixed load factor; returns iterations used, or None if it diverged.
 pub fn newton(
     model: &Model,
@@ -52,11 +55,12 @@ pub fn newton(
             return Ok(None);
         }
         if res <= model.solver.tol * info.force_scale.max(f64::MIN_POSITIVE) || res == 0.0 {
-            return Ok(Some(it));
+            return Ok(asm.deformation_in_range(model, s).then_some(it));
         }
         if sys.solve_neg_residual(&mut dx).is_err() {
             return Ok(None);
         }
+        asm.limit_rotation_step(&mut dx, MAX_NEWTON_ANGLE);
         joint::apply_increment(model, s, &dx);
     }
     joint::update_kinematics(model, s);

@@ -13,7 +13,15 @@ pub fn shipped(name: &str, sets: &[(&str, f64)]) -> Model {
 
 /// Straight beam along +x, length L, from `root` to `tip`, with `support` at the root,
 /// a dead tip force and moment, and sensors `tip` (node) and `tipx` (position).
-pub fn straight_beam(support: &str, elements: usize, props: &str, force: [f64; 3], moment: [f64; 3], extra: &str) -> Model {
+/// `extra` is the body of the `[solver]` table.
+pub fn straight_beam(
+    support: &str,
+    elements: usize,
+    props: &str,
+    force: [f64; 3],
+    moment: [f64; 3],
+    extra: &str,
+) -> Model {
     let text = format!(
         r#"
 [parameters]
@@ -58,7 +66,6 @@ type = "position"
 node = "tip"
 
 [solver]
-load_steps = 4
 {extra}
 "#,
         force[0], force[1], force[2], moment[0], moment[1], moment[2]
