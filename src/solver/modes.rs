@@ -99,7 +99,11 @@ pub fn modes(model: &Model, s: &State) -> Result<Modes, LinalgError> {
         let ksm = sub(&k, &massless, &massive);
         for c in 0..nm {
             let mut rhs: Vec<f64> = (0..ns).map(|r| -ksm[r * nm + c]).collect();
-            dense_solve(&kss, ns, &mut rhs)?;
+            if dense_solve(&kss, ns, &mut rhs).is_err() {
+                // the massless coordinates have a free motion of their own (a free-free
+                // beam's rigid twist without rotary inertia): condensation is undefined
+                return regularized(&k, &m, n, &massless, mdiag_max);
+            }
             for r in 0..ns {
                 t[r * nm + c] = rhs[r];
             }
@@ -136,6 +140,40 @@ pub fn modes(model: &Model, s: &State) -> Result<Modes, LinalgError> {
             full[gi] = (0..nm).map(|j| t[r * nm + j] * vecs[c * nm + j]).sum();
         }
         shapes.push(full);
+    }
+    Ok(Modes {
+        frequencies_hz: freqs,
+        shapes,
+    })
+}
+
+/// Fallback when massless coordinates cannot be condensed: give them a mass 1e-10 of the
+/// largest diagonal mass and drop the modes that live in them (kinetic-energy share above
+/// one half), which are the artificial ones.
+fn regularized(
+    k: &[f64],
+    m: &[f64],
+    n: usize,
+    massless: &[usize],
+    mdiag_max: f64,
+) -> Result<Modes, LinalgError> {
+    let eps = 1e-10 * mdiag_max;
+    let mut mr = m.to_vec();
+    for &i in massless {
+        mr[i * n + i] += eps;
+    }
+    let (lam, vecs) = generalized_sym_eig(k, &mr, n)?;
+    let mut freqs = Vec::new();
+    let mut shapes = Vec::new();
+    for (c, l) in lam.iter().enumerate() {
+        let v = &vecs[c * n..(c + 1) * n];
+        let share: f64 = massless.iter().map(|&i| eps * v[i] * v[i]).sum();
+        if share > 0.5 {
+            continue;
+        }
+        let w = l.abs().sqrt() / (2.0 * std::f64::consts::PI);
+        freqs.push(if *l < 0.0 { -w } else { w });
+        shapes.push(v.to_vec());
     }
     Ok(Modes {
         frequencies_hz: freqs,
