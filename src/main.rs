@@ -29,8 +29,9 @@ enum Verb {
     Check(ModelArgs),
     /// Static equilibrium under the model's loads
     Statics(ModelArgs),
-    /// Natural frequencies and mode shapes about the initial configuration
-    Modes(ModelArgs),
+    /// Natural frequencies and mode shapes (about the static equilibrium under the model's
+    /// loads, or the reference configuration)
+    Modes(ModesArgs),
     /// Time integration from 0 to t_end
     Run(RunArgs),
     /// Runs over a range of parameter values
@@ -74,6 +75,22 @@ impl ModelArgs {
 }
 
 #[derive(Args)]
+struct ModesArgs {
+    #[command(flatten)]
+    model: ModelArgs,
+    /// number of modes to report
+    #[arg(long, default_value_t = 10)]
+    count: usize,
+    /// linearise about `static` equilibrium under the loads, or the `reference`
+    /// configuration; `auto` = static when the model has loads or gravity
+    #[arg(long, default_value = "auto", value_parser = ["auto", "static", "reference"])]
+    about: String,
+    /// include mode shapes (by node: displacement and rotation) in the JSON output
+    #[arg(long)]
+    shapes: bool,
+}
+
+#[derive(Args)]
 struct RunArgs {
     #[command(flatten)]
     model: ModelArgs,
@@ -97,6 +114,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.verb {
         Verb::Check(a) => check(a),
+        Verb::Statics(a) => statics(a),
+        Verb::Modes(a) => modes(a),
+        Verb::Run(a) => run(a),
         other => run_verb(other),
     };
     match result {
@@ -112,8 +132,11 @@ fn main() -> ExitCode {
 fn run_verb(verb: &Verb) -> anyhow::Result<()> {
     // a broken model is worth reporting even where the verb itself is missing
     match verb {
-        Verb::Statics(a) | Verb::Modes(a) | Verb::Bench(a) => {
+        Verb::Statics(a) | Verb::Bench(a) => {
             a.load()?;
+        }
+        Verb::Modes(a) => {
+            a.model.load()?;
         }
         Verb::Run(a) | Verb::Sweep(a) => {
             a.model.load()?;
@@ -121,6 +144,184 @@ fn run_verb(verb: &Verb) -> anyhow::Result<()> {
         Verb::Check(_) | Verb::Plot(_) => {}
     }
     Err(anyhow!("verb {}: not available in this build", verb.name()))
+}
+
+/// Write text to stdout; a closed pipe is an error, not a panic.
+fn emit(text: &str) -> anyhow::Result<()> {
+    std::io::stdout()
+        .lock()
+        .write_all(text.as_bytes())
+        .context("writing to stdout")
+}
+
+fn sensor_map(m: &Model, vals: &[Vec<f64>]) -> serde_json::Map<String, serde_json::Value> {
+    m.sensors
+        .iter()
+        .zip(vals)
+        .map(|(sn, v)| (sn.name.clone(), serde_json::json!(v)))
+        .collect()
+}
+
+fn statics(args: &ModelArgs) -> anyhow::Result<()> {
+    let m = args.load()?;
+    let t0 = std::time::Instant::now();
+    let sol = latdyn::solver::solve_statics(&m).with_context(|| format!("{}", m.path))?;
+    let wall = t0.elapsed().as_secs_f64();
+    if args.json {
+        let v = serde_json::json!({
+            "sensors": sensor_map(&m, &sol.sensors),
+            "strain_energy": sol.strain_energy,
+            "load_steps": sol.report.load_steps,
+            "newton_iterations": sol.report.newton_iterations,
+            "rejected_steps": sol.report.rejected_steps,
+            "wall_s": wall,
+        });
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "statics {}: {} load steps, {} Newton iterations, {:.3} s\n",
+            m.name, sol.report.load_steps, sol.report.newton_iterations, wall
+        );
+        for (sn, v) in m.sensors.iter().zip(&sol.sensors) {
+            let comps = latdyn::sensors::components(&sn.kind);
+            let parts: Vec<String> = comps
+                .iter()
+                .zip(v)
+                .map(|(c, x)| format!("{c}={x:.6e}"))
+                .collect();
+            s += &format!("  {:<16} {}\n", sn.name, parts.join(" "));
+        }
+        emit(&s)
+    }
+}
+
+fn modes(args: &ModesArgs) -> anyhow::Result<()> {
+    let m = args.model.load()?;
+    let preload = match args.about.as_str() {
+        "static" => true,
+        "reference" => false,
+        _ => !m.loads.is_empty() || m.gravity != [0.0; 3],
+    };
+    let state = if preload {
+        latdyn::solver::solve_statics(&m)
+            .with_context(|| format!("{}: static equilibrium for the modes", m.path))?
+            .state
+    } else {
+        latdyn::joint::State::new(&m)
+    };
+    let md = latdyn::solver::modes::modes(&m, &state)?;
+    let count = args.count.min(md.frequencies_hz.len());
+    let f = &md.frequencies_hz[..count];
+    if args.model.json {
+        let mut v = serde_json::json!({
+            "frequencies_hz": f,
+            "about": if preload { "static" } else { "reference" },
+            "free_dofs": m.n_eq,
+        });
+        if args.shapes {
+            v["shapes"] = serde_json::json!(md.shapes[..count]
+                .iter()
+                .map(|sh| {
+                    m.dofs
+                        .iter()
+                        .map(|d| (d.name.clone(), serde_json::json!(d.eq.map(|e| sh[e]).unwrap_or(0.0))))
+                        .collect::<serde_json::Map<String, serde_json::Value>>()
+                })
+                .collect::<Vec<_>>());
+        }
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "modes {} about the {} configuration ({} free dofs)\n",
+            m.name,
+            if preload { "static equilibrium" } else { "reference" },
+            m.n_eq
+        );
+        for (k, x) in f.iter().enumerate() {
+            s += &format!("  {:>3}  {:>14.6} Hz\n", k + 1, x);
+        }
+        emit(&s)
+    }
+}
+
+fn run(args: &RunArgs) -> anyhow::Result<()> {
+    let m = args.model.load()?;
+    let t0 = std::time::Instant::now();
+    let (hist, stats, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
+    let wall = t0.elapsed().as_secs_f64();
+    if let Some(path) = &args.output {
+        write_csv(&m, &hist, path)?;
+    }
+    if let Some(e) = &err {
+        eprintln!("error: {}: {e}", m.path);
+    }
+    if args.model.json {
+        let mut sensors = serde_json::Map::new();
+        for (k, sn) in m.sensors.iter().enumerate() {
+            let vals = &hist.values[k];
+            let nc = vals.first().map(|v| v.len()).unwrap_or(0);
+            let fold = |f: fn(f64, f64) -> f64, init: f64| -> Vec<f64> {
+                (0..nc)
+                    .map(|c| vals.iter().map(|v| v[c]).fold(init, f))
+                    .collect()
+            };
+            sensors.insert(
+                sn.name.clone(),
+                serde_json::json!({
+                    "t": hist.t,
+                    "values": vals,
+                    "min": fold(f64::min, f64::INFINITY),
+                    "max": fold(f64::max, f64::NEG_INFINITY),
+                    "final": vals.last(),
+                    "components": latdyn::sensors::components(&sn.kind),
+                }),
+            );
+        }
+        let v = serde_json::json!({
+            "sensors": sensors,
+            "steps": stats.steps,
+            "rejected_steps": stats.rejected_steps,
+            "newton_iterations": stats.newton_iterations,
+            "wall_s": wall,
+            "status": if err.is_some() { "failed" } else { "completed" },
+            "message": err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+        });
+        emit(&format!("{v}\n"))?;
+    } else {
+        eprintln!(
+            "run {}: {} steps ({} rejected, {} Newton iterations) in {:.3} s",
+            m.name, stats.steps, stats.rejected_steps, stats.newton_iterations, wall
+        );
+    }
+    match err {
+        Some(e) => Err(anyhow!("{}: {e}", m.path)),
+        None => Ok(()),
+    }
+}
+
+/// Sensor histories as CSV: time, then every sensor component.
+fn write_csv(
+    m: &Model,
+    hist: &latdyn::solver::dynamics::History,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    let mut s = String::from("t");
+    for sn in &m.sensors {
+        for c in latdyn::sensors::components(&sn.kind) {
+            s += &format!(",{}.{c}", sn.name);
+        }
+    }
+    s.push('\n');
+    for (i, t) in hist.t.iter().enumerate() {
+        s += &format!("{t}");
+        for v in &hist.values {
+            for x in &v[i] {
+                s += &format!(",{x}");
+            }
+        }
+        s.push('\n');
+    }
+    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
 }
 
 fn check(args: &ModelArgs) -> anyhow::Result<()> {
