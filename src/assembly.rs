@@ -74,6 +74,8 @@ pub struct AssemblyInfo {
     pub force_scale: f64,
     pub strain_energy: f64,
     pub kinetic_energy: f64,
+    /// potential energy of gravity, −Σ m g·x over beams and bodies
+    pub gravity_energy: f64,
 }
 
 impl Assembler {
@@ -182,6 +184,9 @@ impl Assembler {
             let (mut f, k) = element::internal_force_tangent(ed, &es);
             track(&mut info, &f);
             info.strain_energy += element::strain_energy(ed, &es);
+            if has_gravity {
+                info.gravity_energy += element::gravity_energy(ed, &es, model.x0[n1], g);
+            }
             let mut m = [[0.0; NDOF]; NDOF];
             let mut cmat = [[0.0; NDOF]; NDOF];
             if c.inertia || has_gravity {
@@ -268,6 +273,7 @@ impl Assembler {
             let r = s.body_r[ib];
             let y = add(s.body_x[ib], mat_vec(&r, body.com));
             let is = mat_mul(&mat_mul(&r, &body.inertia), &transpose(&r));
+            info.gravity_energy -= body.mass * dot(g, y);
             let mut f = scale(g, -gfac * body.mass);
             let mut mom = [0.0; 3];
             let mut gyro = [[0.0; 3]; 3];

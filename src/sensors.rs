@@ -17,7 +17,7 @@ pub fn components(kind: &SensorKind) -> Vec<&'static str> {
         SensorKind::SectionComponent { component, .. } => vec![SECTION_COMPONENTS[*component]],
         SensorKind::HingeAngle { .. } => vec!["angle", "rate"],
         SensorKind::NodeDirection { .. } => vec!["u"],
-        SensorKind::Energy => vec!["kinetic", "strain", "driver_work"],
+        SensorKind::Energy => vec!["kinetic", "strain", "gravity", "driver_work", "total"],
     }
 }
 
@@ -34,7 +34,7 @@ pub fn units(kind: &SensorKind) -> Vec<&'static str> {
         }
         SensorKind::HingeAngle { .. } => vec!["rad", "rad/s"],
         SensorKind::NodeDirection { .. } => vec!["m"],
-        SensorKind::Energy => vec!["J", "J", "J"],
+        SensorKind::Energy => vec!["J"; 5],
     }
 }
 
@@ -44,6 +44,7 @@ pub fn units(kind: &SensorKind) -> Vec<&'static str> {
 pub struct Energies {
     pub kinetic: f64,
     pub strain: f64,
+    pub gravity: f64,
     pub driver_work: f64,
 }
 
@@ -94,6 +95,13 @@ pub fn sample(
             vec![x[0], x[1], x[2], r[0], r[1], r[2]]
         }
         SensorKind::NodeDirection { node, dir } => vec![dot(s.node_u[*node], *dir)],
-        SensorKind::Energy => vec![energies.kinetic, energies.strain, energies.driver_work],
+        SensorKind::Energy => vec![
+            energies.kinetic,
+            energies.strain,
+            energies.gravity,
+            energies.driver_work,
+            // conserved without damping: mechanical energy minus the work put in
+            energies.kinetic + energies.strain + energies.gravity - energies.driver_work,
+        ],
     }
 }

@@ -429,3 +429,18 @@ pub fn material_point(e: &ElemData, s: &ElemState, x1_0: Vec3, xi: f64, y: f64, 
     let [a, b, c] = section_fields(&k, x1, chord, xi);
     crate::math::add(a, crate::math::add(crate::math::scale(b, y), crate::math::scale(c, z)))
 }
+
+/// Potential energy of a uniform gravity field g, −∫ ρA g·x dx (the section's first
+/// moments vanish), by the same 4-point rule as the mass matrix; `x1_0` is node 1's
+/// reference position.
+pub fn gravity_energy(e: &ElemData, s: &ElemState, x1_0: Vec3, g: Vec3) -> f64 {
+    let k = deformation(e, s);
+    let x1 = crate::math::add(x1_0, s.u1);
+    let chord = crate::math::add(e.chord0, crate::math::sub(s.u2, s.u1));
+    let mut acc = 0.0;
+    for (xi, w) in GAUSS4 {
+        let [a, _, _] = section_fields(&k, x1, chord, xi);
+        acc += w * crate::math::dot(g, a);
+    }
+    -e.props.rho_a * e.l0 * acc
+}

@@ -150,6 +150,7 @@ impl<'m> Integrator<'m> {
         if let Ok(info) = self.sys.evaluate(self.model, &self.asm, &self.s, c, false) {
             self.energies.kinetic = info.kinetic_energy;
             self.energies.strain = info.strain_energy;
+            self.energies.gravity = info.gravity_energy;
         }
         self.driver_power = self.current_driver_power();
     }
@@ -243,6 +244,7 @@ impl<'m> Integrator<'m> {
                 self.aux = aux_new;
                 self.energies.kinetic = info.kinetic_energy;
                 self.energies.strain = info.strain_energy;
+                self.energies.gravity = info.gravity_energy;
                 let pw = self.current_driver_power();
                 self.energies.driver_work += 0.5 * h * (pw + self.driver_power);
                 self.driver_power = pw;

@@ -44,6 +44,7 @@ pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsEr
     let en = Energies {
         kinetic: 0.0,
         strain,
+        gravity: 0.0,
         driver_work: 0.0,
     };
     let vals = model
