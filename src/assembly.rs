@@ -208,7 +208,9 @@ impl Assembler {
                 cmat = cc;
                 // gravity: the consistent load of a uniform field is M times a rigid
                 // translation by g
-                let gv = [g[0], g[1], g[2], 0.0, 0.0, 0.0, g[0], g[1], g[2], 0.0, 0.0, 0.0];
+                let gv = [
+                    g[0], g[1], g[2], 0.0, 0.0, 0.0, g[0], g[1], g[2], 0.0, 0.0, 0.0,
+                ];
                 let mut finert = [0.0; NDOF];
                 for i in 0..NDOF {
                     let mut acc = 0.0;
@@ -339,7 +341,7 @@ impl Assembler {
 
         // frozen (locked) dofs: identity rows keep the matrix regular; their residual is
         // zeroed by the caller's gather
-        if let Some(sk) = sink.as_deref_mut() {
+        if let Some(sk) = sink {
             for (d, e) in self.eq.iter().enumerate() {
                 if let Some(e) = e {
                     if !s.is_active(model, d) {
@@ -445,7 +447,8 @@ impl Assembler {
         sk: &mut dyn Sink,
     ) {
         ch.geometric(y, f, m, |dk, dl, v| {
-            if let (Some(ek), Some(el)) = (self.active_eq(s, model, dk), self.active_eq(s, model, dl))
+            if let (Some(ek), Some(el)) =
+                (self.active_eq(s, model, dk), self.active_eq(s, model, dl))
             {
                 sk.add(ek, el, ck * v);
             }

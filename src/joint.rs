@@ -196,7 +196,10 @@ pub fn update_kinematics(model: &Model, s: &mut State) {
             done[n] = true;
             remaining -= 1;
         }
-        assert!(remaining < before, "cyclic node chain (compile must reject)");
+        assert!(
+            remaining < before,
+            "cyclic node chain (compile must reject)"
+        );
     }
 }
 

@@ -6,6 +6,10 @@
 //! [`joint::State`] → stages (kinematics, element evaluation, assembly, sparse solve,
 //! integrator update, sensors).
 
+// Index loops are the clearest form for small fixed-size numeric kernels, and they mirror
+// the WGSL kernels line by line.
+#![allow(clippy::needless_range_loop)]
+
 pub mod assembly;
 pub mod element;
 pub mod joint;

@@ -165,7 +165,7 @@ fn sensor_map(m: &Model, vals: &[Vec<f64>]) -> serde_json::Map<String, serde_jso
 fn statics(args: &ModelArgs) -> anyhow::Result<()> {
     let m = args.load()?;
     let t0 = std::time::Instant::now();
-    let sol = latdyn::solver::solve_statics(&m).with_context(|| format!("{}", m.path))?;
+    let sol = latdyn::solver::solve_statics(&m).with_context(|| m.path.clone())?;
     let wall = t0.elapsed().as_secs_f64();
     if args.json {
         let v = serde_json::json!({
@@ -224,7 +224,12 @@ fn modes(args: &ModesArgs) -> anyhow::Result<()> {
                 .map(|sh| {
                     m.dofs
                         .iter()
-                        .map(|d| (d.name.clone(), serde_json::json!(d.eq.map(|e| sh[e]).unwrap_or(0.0))))
+                        .map(|d| {
+                            (
+                                d.name.clone(),
+                                serde_json::json!(d.eq.map(|e| sh[e]).unwrap_or(0.0)),
+                            )
+                        })
                         .collect::<serde_json::Map<String, serde_json::Value>>()
                 })
                 .collect::<Vec<_>>());
@@ -234,7 +239,11 @@ fn modes(args: &ModesArgs) -> anyhow::Result<()> {
         let mut s = format!(
             "modes {} about the {} configuration ({} free dofs)\n",
             m.name,
-            if preload { "static equilibrium" } else { "reference" },
+            if preload {
+                "static equilibrium"
+            } else {
+                "reference"
+            },
             m.n_eq
         );
         for (k, x) in f.iter().enumerate() {

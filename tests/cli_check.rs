@@ -93,13 +93,57 @@ fn broken_models_and_bad_arguments_exit_with_2() {
 }
 
 #[test]
-fn unwired_verbs_fail_cleanly() {
-    for verb in ["statics", "modes", "run", "sweep", "bench"] {
-        let out = latdyn(&[verb, "models/cantilever.toml"]);
+fn simulation_verbs_print_only_their_json_object_on_stdout() {
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &["statics", "models/bend45.toml", "--set", "P=300", "--json"],
+            "sensors",
+        ),
+        (
+            &["modes", "models/cantilever.toml", "--count", "3", "--json"],
+            "frequencies_hz",
+        ),
+        (
+            &[
+                "run",
+                "models/pendulum.toml",
+                "--set",
+                "t_end=0.05",
+                "--json",
+            ],
+            "sensors",
+        ),
+    ];
+    for (args, key) in cases {
+        let out = latdyn(args);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|e| panic!("{args:?}: stdout is not one JSON object: {e}"));
+        assert!(v.get(key).is_some(), "{args:?}: no `{key}` in {v}");
+    }
+    let out = latdyn(&["modes", "models/cantilever.toml", "--count", "3", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["frequencies_hz"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn simulation_verbs_reject_broken_models_with_exit_code_2() {
+    for verb in ["statics", "modes", "run"] {
+        let out = latdyn(&[verb, "tests/bad_models/negative_stiffness.toml", "--json"]);
         assert_eq!(out.status.code(), Some(2), "{verb}");
+        assert!(
+            out.stdout.is_empty(),
+            "{verb}: stdout must stay empty on error"
+        );
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains("not available"), "{verb}: {err}");
+        assert!(err.contains("negative_stiffness.toml:"), "{verb}: {err}");
     }
     let out = latdyn(&["run", "tests/bad_models/dt_zero.toml", "-o", "x.out"]);
+    assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("solver.dt"));
 }

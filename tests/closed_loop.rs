@@ -30,8 +30,14 @@ fn four_bar_hinge_angles_obey_the_parallelogram_geometry() {
         stats.steps,
         g1.last().unwrap()[0]
     );
-    assert!(g1.last().unwrap()[0] < -0.5, "the mechanism should have moved");
-    assert!(worst_pos < 5e-3, "coupler off the linkage geometry by {worst_pos} m");
+    assert!(
+        g1.last().unwrap()[0] < -0.5,
+        "the mechanism should have moved"
+    );
+    assert!(
+        worst_pos < 5e-3,
+        "coupler off the linkage geometry by {worst_pos} m"
+    );
 }
 
 #[test]
@@ -42,11 +48,19 @@ fn locking_a_hinge_at_a_set_angle_freezes_it_and_stops_the_mechanism() {
     assert!(err.is_none(), "{err:?}");
     let g1 = &h.values[m.sensor_index("g1").unwrap()];
     let g2 = &h.values[m.sensor_index("g2").unwrap()];
-    let first = g1.iter().position(|v| v[0] == lock).expect("hinge g1 never locked");
+    let first = g1
+        .iter()
+        .position(|v| v[0] == lock)
+        .expect("hinge g1 never locked");
     for i in first..h.t.len() {
         assert_eq!(g1[i][0], lock, "locked hinge moved at t = {}", h.t[i]);
         assert_eq!(g1[i][1], 0.0);
         // the rest is now a structure: the other ground hinge only vibrates elastically
-        assert!((g2[i][0] - lock).abs() < 0.03, "g2 = {} at t = {}", g2[i][0], h.t[i]);
+        assert!(
+            (g2[i][0] - lock).abs() < 0.03,
+            "g2 = {} at t = {}",
+            g2[i][0],
+            h.t[i]
+        );
     }
 }

@@ -33,7 +33,12 @@ fn large_amplitude_pendulum_period_matches_the_elliptic_integral() {
     let (m, d, ic, g, th0): (f64, f64, f64, f64, f64) = (2.0, 0.5, 0.01, 9.81, 2.5);
     let model = shipped(
         "pendulum.toml",
-        &[("theta0", th0), ("t_end", 8.0), ("dt", 5e-4), ("rho_inf", 1.0)],
+        &[
+            ("theta0", th0),
+            ("t_end", 8.0),
+            ("dt", 5e-4),
+            ("rho_inf", 1.0),
+        ],
     );
     let (hist, stats, err) = run(&model, |_, _| {});
     assert!(err.is_none(), "{err:?}");
@@ -45,7 +50,10 @@ fn large_amplitude_pendulum_period_matches_the_elliptic_integral() {
     let i = ic + m * d * d;
     let exact = 4.0 * (i / (m * g * d)).sqrt() * ellip_k((th0 / 2.0).sin());
     let e = rel(period, exact);
-    eprintln!("pendulum θ0={th0}: period {period:.8} s, exact {exact:.8} s, error {e:.2e}, {} steps", stats.steps);
+    eprintln!(
+        "pendulum θ0={th0}: period {period:.8} s, exact {exact:.8} s, error {e:.2e}, {} steps",
+        stats.steps
+    );
     // trapezoidal-like phase error (ωh)²/12 ≈ 1e-6 at h = 5e-4 s; the crossing
     // interpolation adds O(h²): 2e-5 leaves a factor ~10
     assert!(e < 2e-5, "period error {e}");
@@ -58,7 +66,12 @@ fn pendulum_energy_drift_is_bounded_for_rho_inf_one() {
     for (dt, bound) in [(2e-3, 4e-4), (1e-3, 1e-4)] {
         let model = shipped(
             "pendulum.toml",
-            &[("theta0", 2.0), ("t_end", 10.0), ("dt", dt), ("rho_inf", 1.0)],
+            &[
+                ("theta0", 2.0),
+                ("t_end", 10.0),
+                ("dt", dt),
+                ("rho_inf", 1.0),
+            ],
         );
         let (hist, _, err) = run(&model, |_, _| {});
         assert!(err.is_none());

@@ -19,9 +19,17 @@ fn cantilever_tip_load_small_deflection_matches_pl3_over_3ei() {
     let sol = solve_statics(&m).unwrap();
     let tip = sensor(&m, &sol.sensors, "tip");
     let (ei, l) = (100.0, 1.0);
-    assert!(rel(tip[2], p * l * l * l / (3.0 * ei)) < 1e-6, "w = {}", tip[2]);
+    assert!(
+        rel(tip[2], p * l * l * l / (3.0 * ei)) < 1e-6,
+        "w = {}",
+        tip[2]
+    );
     // +z force turns the tip about −y
-    assert!(rel(-tip[4], p * l * l / (2.0 * ei)) < 1e-6, "θ = {}", tip[4]);
+    assert!(
+        rel(-tip[4], p * l * l / (2.0 * ei)) < 1e-6,
+        "θ = {}",
+        tip[4]
+    );
 }
 
 #[test]
@@ -79,18 +87,14 @@ fn end_moment_two_pi_ei_over_l_rolls_the_cantilever_into_a_full_circle() {
     // beam along x, M>0 bends towards −z: tip at (0, 0, −2L/π), turned π.
     let ei = 100.0;
     let pi = std::f64::consts::PI;
-    let half = straight_beam(
-        "clamped",
-        32,
-        PROPS,
-        [0.0; 3],
-        [0.0, pi * ei, 0.0],
-        "",
-    );
+    let half = straight_beam("clamped", 32, PROPS, [0.0; 3], [0.0, pi * ei, 0.0], "");
     let sol = solve_statics(&half).unwrap();
     let x = sensor(&half, &sol.sensors, "tipx");
     // measured (−0.0016, 0, −0.63585) against (0, 0, −0.63662) with 32 elements
-    assert!(x[0].abs() < 3e-3 && (x[2] + 2.0 / pi).abs() < 3e-3, "semicircle tip {x:?}");
+    assert!(
+        x[0].abs() < 3e-3 && (x[2] + 2.0 / pi).abs() < 3e-3,
+        "semicircle tip {x:?}"
+    );
     let tip = sensor(&half, &sol.sensors, "tip");
     // O(h²): measured 0.087, 0.021, 0.0051, 0.0013 rad for 8, 16, 32, 64 elements
     assert!((tip[4].abs() - pi).abs() < 0.01, "tip rotation {}", tip[4]);
@@ -113,7 +117,10 @@ fn end_moment_two_pi_ei_over_l_rolls_the_cantilever_into_a_full_circle() {
     assert!(g32 / g64 > 3.0 && g64 < 2.5e-3, "gaps {g32} {g64}");
     // a full turn: the tip frame is back to the identity (rotation vector 0 ≡ 2π), up to
     // the same O(h²) error in the turned angle (measured 0.041 and 0.010 rad)
-    assert!(r32 / r64 > 3.0 && r64 < 0.015, "tip rotation residues {r32} {r64} rad");
+    assert!(
+        r32 / r64 > 3.0 && r64 < 0.015,
+        "tip rotation residues {r32} {r64} rad"
+    );
 }
 
 #[test]
@@ -132,12 +139,25 @@ fn bend45_tip_converges_quadratically_to_the_published_converged_position() {
     let t64 = tip(64.0);
     let want = [46.90, 15.56, 53.60];
     for k in 0..3 {
-        assert!((t64[k] - want[k]).abs() < 0.05, "64 elements: {t64:?} vs {want:?}");
+        assert!(
+            (t64[k] - want[k]).abs() < 0.05,
+            "64 elements: {t64:?} vs {want:?}"
+        );
     }
     let d1 = (t32[2] - t16[2]).abs();
     let d2 = (t64[2] - t32[2]).abs();
-    eprintln!("bend45 P=600 z: 16 el {:.4}, 32 el {:.4}, 64 el {:.4}, ratio {:.2}", t16[2], t32[2], t64[2], d1 / d2);
-    assert!(d1 / d2 > 3.0, "convergence ratio {} (second order expects ~4)", d1 / d2);
+    eprintln!(
+        "bend45 P=600 z: 16 el {:.4}, 32 el {:.4}, 64 el {:.4}, ratio {:.2}",
+        t16[2],
+        t32[2],
+        t64[2],
+        d1 / d2
+    );
+    assert!(
+        d1 / d2 > 3.0,
+        "convergence ratio {} (second order expects ~4)",
+        d1 / d2
+    );
 }
 
 #[test]

@@ -162,3 +162,69 @@ pub fn mvec<R: Real>(m: &M3<R>, v: V3<R>) -> V3<R> {
         m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
     ]
 }
+
+/// v + d ε with ε² = 0: one directional derivative.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Dual {
+    pub v: f64,
+    pub d: f64,
+}
+
+impl Dual {
+    #[inline]
+    pub fn new(v: f64, d: f64) -> Self {
+        Dual { v, d }
+    }
+}
+
+impl Add for Dual {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Dual::new(self.v + o.v, self.d + o.d)
+    }
+}
+impl Sub for Dual {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        Dual::new(self.v - o.v, self.d - o.d)
+    }
+}
+impl Neg for Dual {
+    type Output = Self;
+    #[inline]
+    fn neg(self) -> Self {
+        Dual::new(-self.v, -self.d)
+    }
+}
+impl Mul for Dual {
+    type Output = Self;
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        Dual::new(self.v * o.v, self.v * o.d + self.d * o.v)
+    }
+}
+impl Div for Dual {
+    type Output = Self;
+    #[inline]
+    fn div(self, o: Self) -> Self {
+        let inv = 1.0 / o.v;
+        Dual::new(self.v * inv, (self.d * o.v - self.v * o.d) * inv * inv)
+    }
+}
+impl Real for Dual {
+    #[inline]
+    fn cst(v: f64) -> Self {
+        Dual::new(v, 0.0)
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        let s = self.v.sqrt();
+        Dual::new(s, 0.5 * self.d / s)
+    }
+    #[inline]
+    fn value(self) -> f64 {
+        self.v
+    }
+}

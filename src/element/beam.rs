@@ -21,7 +21,7 @@
 //! dx exactly; the remaining integral along the element is polynomial of degree ≤ 6 in ξ
 //! and is done with 4-point Gauss-Legendre, which is exact for degree 7.
 
-use super::ad::{mcol, mvec, vadd, vcross, vdot, vscale, vsub, HyperDual, Real, M3, V3};
+use super::ad::{mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, HyperDual, Real, M3, V3};
 use crate::math::{Mat3, Vec3};
 use crate::model::BeamProps;
 
@@ -231,9 +231,9 @@ pub fn deformation(e: &ElemData, s: &ElemState) -> Kin<f64> {
 pub fn deformation_in_range(e: &ElemData, s: &ElemState) -> bool {
     let (t1, t2) = node_frames(e, s);
     let k = kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
-    [t1, t2].iter().all(|t| {
-        (0..3).all(|j| crate::math::dot(mcol(&k.tc, j), crate::math::col(t, j)) > 0.5)
-    })
+    [t1, t2]
+        .iter()
+        .all(|t| (0..3).all(|j| crate::math::dot(mcol(&k.tc, j), crate::math::col(t, j)) > 0.5))
 }
 
 /// Strain energy of the current state.
@@ -241,9 +241,11 @@ pub fn strain_energy(e: &ElemData, s: &ElemState) -> f64 {
     energy(&e.props, e.l0, &deformation(e, s))
 }
 
+/// Reference implementation by hyper-dual differentiation of the strain energy (12 passes),
+/// kept to test the analytic [`internal_force`].
 /// Internal force vector f = ∂U/∂q (forces and moments the element needs from its
 /// nodes; the nodal residual is f_int − f_ext).
-pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
+pub fn internal_force_ad(e: &ElemData, s: &ElemState) -> Vec12 {
     let (t1, t2) = node_frames(e, s);
     let zero = [0.0; NDOF];
     let mut f = [0.0; NDOF];
@@ -254,11 +256,13 @@ pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
     f
 }
 
+/// Reference implementation (78 hyper-dual passes over the energy), kept to test
+/// [`internal_force_tangent`].
 /// Internal force and its consistent tangent K_jk = ∂f_j/∂q_k, where the state is
 /// perturbed multiplicatively (T ← exp(δπ̃) T). K is the symmetric second derivative plus
 /// −½ skew(m) on each node's rotation block, m that node's internal moment: the
 /// non-commutativity of spatial spins. K is symmetric at equilibrium states only.
-pub fn internal_force_tangent(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
+pub fn internal_force_tangent_ad(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
     let (t1, t2) = node_frames(e, s);
     let mut f = [0.0; NDOF];
     let mut k = [[0.0; NDOF]; NDOF];
@@ -356,8 +360,9 @@ fn mass_from_gradients(e: &ElemData, g: &[[[Vec3; 3]; 4]; NDOF]) -> Mat12 {
     m
 }
 
-/// Consistent, configuration-dependent mass matrix M = ∫ μ gᵀ g dΩ (paper eq. 19).
-pub fn mass_matrix(e: &ElemData, s: &ElemState) -> Mat12 {
+/// Reference implementation of [`mass_matrix`] by dual-number differentiation of the
+/// position field.
+pub fn mass_matrix_ad(e: &ElemData, s: &ElemState) -> Mat12 {
     let (t1, t2) = node_frames(e, s);
     mass_from_gradients(e, &gradients(e, s, &t1, &t2))
 }
@@ -368,7 +373,7 @@ pub fn mass_matrix(e: &ElemData, s: &ElemState) -> Mat12 {
 /// The inertial nodal force is M a + S with a = (ẍ1, α1, ẍ2, α2).
 pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
     let (t1, t2) = node_frames(e, s);
-    let g = gradients(e, s, &t1, &t2);
+    let g = gradients_closed(e, s, &t1, &t2);
     let m = mass_from_gradients(e, &g);
     let w = field_weights(&e.props);
     // S_j = ∫ μ g_j · H(v, v), H the second derivative of the position field
@@ -427,7 +432,10 @@ pub fn material_point(e: &ElemData, s: &ElemState, x1_0: Vec3, xi: f64, y: f64, 
     let x1 = crate::math::add(x1_0, s.u1);
     let chord = crate::math::add(e.chord0, crate::math::sub(s.u2, s.u1));
     let [a, b, c] = section_fields(&k, x1, chord, xi);
-    crate::math::add(a, crate::math::add(crate::math::scale(b, y), crate::math::scale(c, z)))
+    crate::math::add(
+        a,
+        crate::math::add(crate::math::scale(b, y), crate::math::scale(c, z)),
+    )
 }
 
 /// Potential energy of a uniform gravity field g, −∫ ρA g·x dx (the section's first
@@ -443,4 +451,245 @@ pub fn gravity_energy(e: &ElemData, s: &ElemState, x1_0: Vec3, g: Vec3) -> f64 {
         acc += w * crate::math::dot(g, a);
     }
     -e.props.rho_a * e.l0 * acc
+}
+
+/// First derivatives of the deformation measures with respect to the 12 element dofs
+/// (spatial spins), in closed form: the convected frame turns by
+/// δθ_C = e θx + t_c2 θy + t_c3 θz with θz = t_c2·δl/ℓ, θy = −t_c3·δl/ℓ and, from
+/// t_c3·n = 0 (n = node 1's y axis, n = a e + b t_c2), θx = e·δπ1 + (a/b)(θy − t_c2·δπ1);
+/// then δD_i = skew(ψ_i) D_i with ψ_i = T_Cᵀ(δπ_i − δθ_C), and the skew-part angles vary
+/// as δφ_i = ½(tr D_i I − D_i) ψ_i.
+#[derive(Clone, Copy, Debug)]
+pub struct Grad<R> {
+    pub kin: Kin<R>,
+    /// spatial spin of the convected frame per dof (3 × 12)
+    pub dtheta: [[R; NDOF]; 3],
+    /// [φx1, φy1, φz1, φx2, φy2, φz2] per dof (6 × 12)
+    pub dphi: [[R; NDOF]; 6],
+    /// chord length ℓ per dof
+    pub dlen: [R; NDOF],
+}
+
+/// Deformation measures and their first derivatives (generic: in [`Dual`] numbers the
+/// derivative of this gradient gives the tangent).
+#[inline]
+pub fn gradient<R: Real>(
+    chord0: Vec3,
+    l0: f64,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+) -> Grad<R> {
+    let kin = kinematics(chord0, l0, u1, u2, t1, t2);
+    let z = R::cst(0.0);
+    let e = mcol(&kin.tc, 0);
+    let tc2 = mcol(&kin.tc, 1);
+    let tc3 = mcol(&kin.tc, 2);
+    let n = mcol(t1, 1);
+    let ab = vdot(n, e) / vdot(n, tc2);
+    let il = R::cst(1.0) / kin.len;
+    let mut dlen = [z; NDOF];
+    // convected components of the frame spin, as rows over the 12 dofs
+    let mut thx = [z; NDOF];
+    let mut thy = [z; NDOF];
+    let mut thz = [z; NDOF];
+    for k in 0..3 {
+        dlen[k] = -e[k];
+        dlen[6 + k] = e[k];
+        thz[k] = -tc2[k] * il;
+        thz[6 + k] = tc2[k] * il;
+        thy[k] = tc3[k] * il;
+        thy[6 + k] = -tc3[k] * il;
+    }
+    for j in 0..NDOF {
+        thx[j] = ab * thy[j];
+    }
+    for k in 0..3 {
+        thx[3 + k] = thx[3 + k] + e[k] - ab * tc2[k];
+    }
+    let mut dtheta = [[z; NDOF]; 3];
+    for r in 0..3 {
+        for j in 0..NDOF {
+            dtheta[r][j] = e[r] * thx[j] + tc2[r] * thy[j] + tc3[r] * thz[j];
+        }
+    }
+    let mut dphi = [[z; NDOF]; 6];
+    for (i, t) in [t1, t2].iter().enumerate() {
+        // D = T_Cᵀ T_i and G = ½(tr D I − D)
+        let mut d = [[z; 3]; 3];
+        for r in 0..3 {
+            for c in 0..3 {
+                d[r][c] = vdot(mcol(&kin.tc, r), mcol(t, c));
+            }
+        }
+        let half = R::cst(0.5);
+        let tr = d[0][0] + d[1][1] + d[2][2];
+        let mut g = [[z; 3]; 3];
+        for r in 0..3 {
+            for c in 0..3 {
+                g[r][c] = -(half * d[r][c]);
+            }
+            g[r][r] = g[r][r] + half * tr;
+        }
+        // ψ = T_Cᵀ(δπ_i − δθ_C), per dof column j
+        for j in 0..NDOF {
+            let mut w = [-dtheta[0][j], -dtheta[1][j], -dtheta[2][j]];
+            if j / 3 == 1 + 2 * i {
+                w[j % 3] = w[j % 3] + R::cst(1.0);
+            }
+            let psi = [vdot(e, w), vdot(tc2, w), vdot(tc3, w)];
+            for r in 0..3 {
+                dphi[3 * i + r][j] = g[r][0] * psi[0] + g[r][1] * psi[1] + g[r][2] * psi[2];
+            }
+        }
+    }
+    Grad {
+        kin,
+        dtheta,
+        dphi,
+        dlen,
+    }
+}
+
+/// ∂U/∂φ and ∂U/∂ℓ of the Bernoulli energy (see [`energy`]).
+#[inline]
+fn energy_partials<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> ([R; 6], R) {
+    let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
+    let t = R::cst(p.gj / l0) * (fx2 - fx1);
+    let cy = R::cst(2.0 * p.eiy / l0);
+    let cz = R::cst(2.0 * p.eiz / l0);
+    let two = R::cst(2.0);
+    (
+        [
+            -t,
+            cy * (two * fy1 + fy2),
+            cz * (two * fz1 + fz2),
+            t,
+            cy * (fy1 + two * fy2),
+            cz * (fz1 + two * fz2),
+        ],
+        R::cst(p.ea / l0) * k.u1,
+    )
+}
+
+/// Internal force f = ∂U/∂q from the closed-form gradient, generic over the scalar.
+#[inline]
+fn force_generic<R: Real>(e: &ElemData, u1: V3<R>, u2: V3<R>, t1: &M3<R>, t2: &M3<R>) -> [R; NDOF] {
+    let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
+    let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
+    let mut f = [R::cst(0.0); NDOF];
+    for (j, fj) in f.iter_mut().enumerate() {
+        let mut acc = n * g.dlen[j];
+        for a in 0..6 {
+            acc = acc + m[a] * g.dphi[a][j];
+        }
+        *fj = acc;
+    }
+    f
+}
+
+/// Internal force vector f = ∂U/∂q: the forces and moments the element needs from its
+/// nodes (the nodal residual is f_int − f_ext).
+pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
+    let (t1, t2) = node_frames(e, s);
+    force_generic(e, s.u1, s.u2, &t1, &t2)
+}
+
+/// Node position and frame perturbed along one element-dof direction in dual numbers.
+#[inline]
+fn perturb_dual(x: Vec3, t: &Mat3, d: &[f64]) -> (V3<Dual>, M3<Dual>) {
+    let xp = [0, 1, 2].map(|i| Dual::new(x[i], d[i]));
+    let w = [d[3], d[4], d[5]];
+    let mut tp = [[Dual::default(); 3]; 3];
+    for j in 0..3 {
+        let tj = crate::math::col(t, j);
+        let a = crate::math::cross(w, tj);
+        for i in 0..3 {
+            tp[i][j] = Dual::new(tj[i], a[i]);
+        }
+    }
+    (xp, tp)
+}
+
+/// Internal force and its consistent tangent K_jk = ∂f_j/∂q_k, the state perturbed
+/// multiplicatively (T ← exp(δπ̃) T): column k is the dual-number derivative of the
+/// closed-form force along dof k, so the non-commutativity of spatial spins is included.
+/// K is symmetric at equilibrium states only.
+pub fn internal_force_tangent(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
+    let (t1, t2) = node_frames(e, s);
+    let f = force_generic(e, s.u1, s.u2, &t1, &t2);
+    let mut k = [[0.0; NDOF]; NDOF];
+    for c in 0..NDOF {
+        let d = unit(c);
+        let (u1, tt1) = perturb_dual(s.u1, &t1, &d[0..6]);
+        let (u2, tt2) = perturb_dual(s.u2, &t2, &d[6..12]);
+        let fd = force_generic(e, u1, u2, &tt1, &tt2);
+        for r in 0..NDOF {
+            k[r][c] = fd[r].d;
+        }
+    }
+    (f, k)
+}
+
+/// g_j = ∂(a, b, c)/∂q_j at the Gauss points, in closed form from [`gradient`]:
+/// δa = δx1 + ξ δl + δθ_C × (a − x1 − ξ l) + T_C δ[0, u_y, u_z],
+/// δb = δθ_C × b + T_C δ[−θz, 0, θx], δc = δθ_C × c + T_C δ[θy, −θx, 0].
+fn gradients_closed(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3) -> [[[Vec3; 3]; 4]; NDOF] {
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, t1, t2);
+    let k = &g.kin;
+    let tc = &k.tc;
+    let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
+    let len = k.len;
+    let mut out = [[[[0.0; 3]; 3]; 4]; NDOF];
+    for (gp, (xi, _)) in GAUSS4.iter().enumerate() {
+        let xi = *xi;
+        let n1 = xi - 2.0 * xi * xi + xi * xi * xi;
+        let n2 = -xi * xi + xi * xi * xi;
+        let d1 = 1.0 - 4.0 * xi + 3.0 * xi * xi;
+        let d2 = -2.0 * xi + 3.0 * xi * xi;
+        let uy = len * (n1 * fz1 + n2 * fz2);
+        let uz = -len * (n1 * fy1 + n2 * fy2);
+        let thx = (1.0 - xi) * fx1 + xi * fx2;
+        let thy = d1 * fy1 + d2 * fy2;
+        let thz = d1 * fz1 + d2 * fz2;
+        // current field offsets in the convected frame
+        let ra = crate::math::mat_vec(tc, [0.0, uy, uz]);
+        let rb = crate::math::mat_vec(tc, [-thz, 1.0, thx]);
+        let rc = crate::math::mat_vec(tc, [thy, -thx, 1.0]);
+        for j in 0..NDOF {
+            let dth = [g.dtheta[0][j], g.dtheta[1][j], g.dtheta[2][j]];
+            let dp = |a: usize| g.dphi[a][j];
+            let duy = g.dlen[j] * (n1 * fz1 + n2 * fz2) + len * (n1 * dp(2) + n2 * dp(5));
+            let duz = -(g.dlen[j] * (n1 * fy1 + n2 * fy2) + len * (n1 * dp(1) + n2 * dp(4)));
+            let dthx = (1.0 - xi) * dp(0) + xi * dp(3);
+            let dthy = d1 * dp(1) + d2 * dp(4);
+            let dthz = d1 * dp(2) + d2 * dp(5);
+            let mut da = crate::math::add(
+                crate::math::cross(dth, ra),
+                crate::math::mat_vec(tc, [0.0, duy, duz]),
+            );
+            if j < 3 {
+                da[j] += 1.0 - xi;
+            } else if (6..9).contains(&j) {
+                da[j - 6] += xi;
+            }
+            let db = crate::math::add(
+                crate::math::cross(dth, rb),
+                crate::math::mat_vec(tc, [-dthz, 0.0, dthx]),
+            );
+            let dc = crate::math::add(
+                crate::math::cross(dth, rc),
+                crate::math::mat_vec(tc, [dthy, -dthx, 0.0]),
+            );
+            out[j][gp] = [da, db, dc];
+        }
+    }
+    out
+}
+
+/// Consistent, configuration-dependent mass matrix M = ∫ μ gᵀ g dΩ (paper eq. 19).
+pub fn mass_matrix(e: &ElemData, s: &ElemState) -> Mat12 {
+    let (t1, t2) = node_frames(e, s);
+    mass_from_gradients(e, &gradients_closed(e, s, &t1, &t2))
 }

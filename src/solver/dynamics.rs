@@ -213,7 +213,8 @@ impl<'m> Integrator<'m> {
                     / (1.0 - p.alpha_m);
                 s.a[d] = a_new;
                 s.v[d] = start.v[d] + h * (1.0 - p.gamma) * aux0[d] + h * p.gamma * aux_new;
-                incr[e] = h * start.v[d] + h * h * (0.5 - p.beta) * aux0[d] + h * h * p.beta * aux_new;
+                incr[e] =
+                    h * start.v[d] + h * h * (0.5 - p.beta) * aux0[d] + h * h * p.beta * aux_new;
             }
             joint::apply_increment(model, &mut s, &incr);
             joint::update_kinematics(model, &mut s);
@@ -337,9 +338,7 @@ pub fn output_times(model: &Model) -> Vec<f64> {
     let s = &model.solver;
     let dt_out = if s.output_dt > 0.0 { s.output_dt } else { s.dt };
     let n = (s.t_end / dt_out - 1e-9).ceil().max(1.0) as usize;
-    (0..=n)
-        .map(|k| (k as f64 * dt_out).min(s.t_end))
-        .collect()
+    (0..=n).map(|k| (k as f64 * dt_out).min(s.t_end)).collect()
 }
 
 /// Run the model from t = 0 to t_end; `on_sample` sees every output sample as it comes

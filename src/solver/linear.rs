@@ -14,7 +14,10 @@ impl Sink for SparseSink<'_> {
     #[inline]
     fn add(&mut self, row: usize, col: usize, v: f64) {
         // the pattern came from the same assembly code, so every entry has a slot
-        let k = self.pattern.slot(row, col).expect("entry outside the assembled pattern");
+        let k = self
+            .pattern
+            .slot(row, col)
+            .expect("entry outside the assembled pattern");
         self.values[k] += v;
     }
 }

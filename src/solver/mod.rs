@@ -1,10 +1,10 @@
 //! Solvers: statics (load stepping), modes (linearised eigenproblem), and the Newton
 //! system they share.
 
+pub mod dynamics;
 pub mod linear;
 pub mod modes;
 pub mod statics;
-pub mod dynamics;
 
 use crate::assembly::Assembler;
 use crate::joint::State;

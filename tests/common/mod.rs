@@ -6,7 +6,9 @@ use latdyn::model::{compile_str, load, Model};
 use std::path::Path;
 
 pub fn shipped(name: &str, sets: &[(&str, f64)]) -> Model {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("models")
+        .join(name);
     let o: Vec<(String, f64)> = sets.iter().map(|(k, v)| (k.to_string(), *v)).collect();
     load(&path, &o).unwrap_or_else(|e| panic!("{e}"))
 }
