@@ -17,4 +17,5 @@ pub mod linalg;
 pub mod math;
 pub mod model;
 pub mod sensors;
+pub mod signal;
 pub mod solver;
