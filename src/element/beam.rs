@@ -135,10 +135,27 @@ pub fn energy<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> R {
     // ∫ EI v''² dx / 2 for Hermite v with end slopes θ1, θ2 = (2EI/L)(θ1² + θ1θ2 + θ2²)
     let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
     let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
-    half * R::cst(p.ea / l0) * k.u1 * k.u1
+    let s = stretch(l0, k);
+    half * R::cst(p.ea / l0) * s * s
         + half * R::cst(p.gj / l0) * tw * tw
         + R::cst(2.0 * p.eiz / l0) * bz
         + R::cst(2.0 * p.eiy / l0) * by
+}
+
+/// Mean axial stretch of the neutral axis: the chord change plus the length the bending
+/// shape adds, ∫½(v'² + w'²) dx = (L/30)(2θ1² − θ1θ2 + 2θ2²) per plane for Hermite v, w
+/// with end slopes θ relative to the chord (the Bernoulli strain u' + ½w'² averaged over
+/// the element). Without it an axial force only stiffens the chord rotation, like a
+/// string: tension-stiffened frequencies (rotating beams) then converge from below at
+/// O(h²) with a large constant (−0.6 % on the third flap mode of a rotating cantilever at
+/// Ω̄ = 10 with 12 elements); with it they match the published tables to 1e-4.
+#[inline]
+pub fn stretch<R: Real>(l0: f64, k: &Kin<R>) -> R {
+    let [_, fy1, fz1, _, fy2, fz2] = k.phi;
+    let two = R::cst(2.0);
+    let q = two * fy1 * fy1 - fy1 * fy2 + two * fy2 * fy2 + two * fz1 * fz1 - fz1 * fz2
+        + two * fz2 * fz2;
+    k.u1 + R::cst(l0 / 30.0) * q
 }
 
 /// Position field x_P = a + y b + z c at station ξ (see module docs), with `x1` node 1's
@@ -405,7 +422,7 @@ pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) 
 }
 
 /// Section forces at station ξ ∈ [0, 1], convected frame: [N, Vy, Vz, T, My, Mz].
-/// N = EA (ℓ−L0)/L0 (tension positive), T = GJ (φx2 − φx1)/L0, My = EI_y κ_y and
+/// N = EA s/L0 with s the mean stretch ([`stretch`], tension positive), T = GJ (φx2 − φx1)/L0, My = EI_y κ_y and
 /// Mz = EI_z κ_z with κ = dθ/dx of the Hermite section rotation, Vy = dMz/dx,
 /// Vz = dMy/dx.
 pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64) -> [f64; 6] {
@@ -416,7 +433,7 @@ pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64) -> [f64; 6] {
     let c1 = -4.0 + 6.0 * xi;
     let c2 = -2.0 + 6.0 * xi;
     [
-        p.ea * k.u1 / l,
+        p.ea * stretch(l, &k) / l,
         p.eiz * 6.0 * (fz1 + fz2) / (l * l),
         p.eiy * 6.0 * (fy1 + fy2) / (l * l),
         p.gj * (fx2 - fx1) / l,
@@ -552,7 +569,7 @@ pub fn gradient<R: Real>(
     }
 }
 
-/// ∂U/∂φ and ∂U/∂ℓ of the Bernoulli energy (see [`energy`]).
+/// ∂U/∂φ and ∂U/∂ℓ (= the axial force N) of the Bernoulli energy (see [`energy`]).
 #[inline]
 fn energy_partials<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> ([R; 6], R) {
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
@@ -560,16 +577,19 @@ fn energy_partials<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> ([R; 6], R) {
     let cy = R::cst(2.0 * p.eiy / l0);
     let cz = R::cst(2.0 * p.eiz / l0);
     let two = R::cst(2.0);
+    let four = R::cst(4.0);
+    let n = R::cst(p.ea / l0) * stretch(l0, k);
+    let g = n * R::cst(l0 / 30.0);
     (
         [
             -t,
-            cy * (two * fy1 + fy2),
-            cz * (two * fz1 + fz2),
+            cy * (two * fy1 + fy2) + g * (four * fy1 - fy2),
+            cz * (two * fz1 + fz2) + g * (four * fz1 - fz2),
             t,
-            cy * (fy1 + two * fy2),
-            cz * (fz1 + two * fz2),
+            cy * (fy1 + two * fy2) + g * (four * fy2 - fy1),
+            cz * (fz1 + two * fz2) + g * (four * fz2 - fz1),
         ],
-        R::cst(p.ea / l0) * k.u1,
+        n,
     )
 }
 
