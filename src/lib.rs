@@ -12,5 +12,6 @@ pub mod joint;
 pub mod linalg;
 pub mod math;
 pub mod model;
+pub mod output;
 pub mod sensors;
 pub mod solver;
