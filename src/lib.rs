@@ -16,6 +16,7 @@ pub mod joint;
 pub mod linalg;
 pub mod math;
 pub mod model;
+pub mod output;
 pub mod sensors;
 pub mod signal;
 pub mod solver;
