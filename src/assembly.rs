@@ -317,8 +317,14 @@ impl Assembler {
         for l in &model.loads {
             let ch = joint::node_chain(model, s, l.node);
             let y = joint::node_position(model, s, l.node);
-            let f = scale(l.force, -c.load_factor);
-            let m = scale(l.moment, -c.load_factor);
+            // time scales apply in dynamics; statics applies loads at full value
+            let lf = if c.inertia {
+                c.load_factor * l.scale.as_ref().map(|f| f.eval(s.t)[0]).unwrap_or(1.0)
+            } else {
+                c.load_factor
+            };
+            let f = scale(l.force, -lf);
+            let m = scale(l.moment, -lf);
             track(&mut info, &f);
             track(&mut info, &m);
             ch.project(y, f, m, gen);

@@ -58,6 +58,9 @@ impl State {
                 s.v[sp.dofs[k]] = sp.omega0[k];
             }
         }
+        if let Some((omega, c)) = model.initial_rotation {
+            initial_rigid_rotation(model, &mut s, omega, c);
+        }
         apply_drivers(model, &mut s, 0.0);
         update_kinematics(model, &mut s);
         s
@@ -74,6 +77,47 @@ impl State {
             .iter()
             .zip(&self.locked)
             .any(|(h, &l)| l && h.dof == d)
+    }
+}
+
+/// Initial rates of the free dofs from the rigid field v(x) = ω × (x − c) (`[initial]`);
+/// rates given explicitly in the file and driven dofs keep theirs, hinges start at 0.
+fn initial_rigid_rotation(model: &Model, s: &mut State, omega: Vec3, c: Vec3) {
+    let set = |s: &mut State, d: usize, v: f64| {
+        let dof = &model.dofs[d];
+        if matches!(dof.mode, DofMode::Free) && !dof.v0_explicit {
+            s.v[d] = v;
+        }
+    };
+    for (n, kin) in model.node_kin.iter().enumerate() {
+        if let NodeKin::Free { trans, spin } = kin {
+            let vel = cross(omega, sub(model.x0[n], c));
+            for k in 0..3 {
+                if let Some(d) = trans[k] {
+                    set(s, d, vel[k]);
+                }
+            }
+            if let Some(sp) = spin {
+                for (&d, &w) in model.spins[*sp].dofs.iter().zip(&omega) {
+                    set(s, d, w);
+                }
+            }
+        }
+    }
+    for b in 0..model.bodies.len() {
+        // the initial reference point, including initial translations
+        let vel = cross(omega, sub(body_pose(model, s, b).0, c));
+        for link in &model.bodies[b].chain {
+            match *link {
+                ChainLink::Translate { dof, dir } => set(s, dof, dot(dir, vel)),
+                ChainLink::RotateFixedAxis { dof, axis } => set(s, dof, dot(axis, omega)),
+                ChainLink::SpinComponent { dof, k, .. } => set(s, dof, omega[k]),
+                ChainLink::Hinge { dof, .. } => set(s, dof, 0.0),
+            }
+        }
+    }
+    for h in &model.hinges {
+        set(s, h.dof, 0.0);
     }
 }
 

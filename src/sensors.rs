@@ -18,7 +18,24 @@ pub fn components(kind: &SensorKind) -> Vec<&'static str> {
         SensorKind::HingeAngle { .. } => vec!["angle", "rate"],
         SensorKind::NodeDirection { .. } => vec!["u"],
         SensorKind::Energy => vec!["kinetic", "strain", "gravity", "driver_work", "total"],
+        SensorKind::DriverForce { .. } => vec!["force"],
+        SensorKind::BeamDisplacement { nodes, .. } => node_component_names(nodes.len()),
     }
+}
+
+/// `n0`, `n1`, … as static strings (each index is leaked once, then reused).
+fn node_component_names(n: usize) -> Vec<&'static str> {
+    use std::sync::{Mutex, OnceLock};
+    static NAMES: OnceLock<Mutex<Vec<&'static str>>> = OnceLock::new();
+    let mut names = NAMES
+        .get_or_init(|| Mutex::new(Vec::new()))
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    while names.len() < n {
+        let i = names.len();
+        names.push(Box::leak(format!("n{i}").into_boxed_str()));
+    }
+    names[..n].to_vec()
 }
 
 /// SI units of each component.
@@ -35,6 +52,10 @@ pub fn units(kind: &SensorKind) -> Vec<&'static str> {
         SensorKind::HingeAngle { .. } => vec!["rad", "rad/s"],
         SensorKind::NodeDirection { .. } => vec!["m"],
         SensorKind::Energy => vec!["J"; 5],
+        SensorKind::DriverForce { rotational, .. } => {
+            vec![if *rotational { "N*m" } else { "N" }]
+        }
+        SensorKind::BeamDisplacement { nodes, .. } => vec!["m"; nodes.len()],
     }
 }
 
@@ -48,13 +69,15 @@ pub struct Energies {
     pub driver_work: f64,
 }
 
-/// Values of one sensor at state `s`.
+/// Values of one sensor at state `s`. `driver_forces` (by dof) holds the generalized
+/// force each driven dof's driver supplies.
 pub fn sample(
     model: &Model,
     asm: &Assembler,
     s: &State,
     kind: &SensorKind,
     energies: &Energies,
+    driver_forces: &[f64],
 ) -> Vec<f64> {
     let elem_state = |e: usize| {
         let el = &model.elements[e];
@@ -103,5 +126,9 @@ pub fn sample(
             // conserved without damping: mechanical energy minus the work put in
             energies.kinetic + energies.strain + energies.gravity - energies.driver_work,
         ],
+        SensorKind::DriverForce { dof, .. } => vec![driver_forces[*dof]],
+        SensorKind::BeamDisplacement { nodes, axis } => {
+            nodes.iter().map(|&n| s.node_u[n][*axis]).collect()
+        }
     }
 }

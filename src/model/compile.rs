@@ -79,6 +79,7 @@ struct HingeDraft {
     lock_angle: Option<f64>,
     lock_time: Option<f64>,
     v0: f64,
+    v0_explicit: bool,
 }
 
 struct BodyDraft {
@@ -98,8 +99,18 @@ fn dof(name: String, mode: DofMode, q0: f64, v0: f64) -> Dof {
         mode,
         q0,
         v0,
+        v0_explicit: false,
         eq: None,
     }
+}
+
+/// One `[[bodies.dofs]]` entry after numbering: its first global dof, whether it is a
+/// rotation, and whether it is driven (a free_rotation is three free dofs).
+#[derive(Clone, Copy)]
+struct BodyDofRef {
+    dof: usize,
+    rotational: bool,
+    driven: bool,
 }
 
 fn free_dof(name: String) -> Dof {
@@ -369,9 +380,21 @@ impl Compiler<'_> {
         }
 
         let mut model_bodies = Vec::with_capacity(bodies.len());
+        let mut body_dofs: Vec<Vec<BodyDofRef>> = Vec::with_capacity(bodies.len());
         for bd in bodies {
             let mut body = bd.body;
+            let mut refs = Vec::with_capacity(bd.dofs.len());
             for d in bd.dofs {
+                refs.push(BodyDofRef {
+                    dof: dofs.len(),
+                    rotational: !matches!(d, DofDraft::Translate(..)),
+                    driven: match &d {
+                        DofDraft::Translate(_, q) | DofDraft::Rotate(_, q) => {
+                            matches!(q.mode, DofMode::Driven(_))
+                        }
+                        DofDraft::FreeRotation(..) => false,
+                    },
+                });
                 match d {
                     DofDraft::Translate(dir, q) => {
                         dofs.push(q);
@@ -405,11 +428,14 @@ impl Compiler<'_> {
                 }
             }
             model_bodies.push(body);
+            body_dofs.push(refs);
         }
 
         let mut hinges = Vec::with_capacity(hinge_drafts.len());
         for h in hinge_drafts {
-            dofs.push(dof(format!("{}.angle", h.name), DofMode::Free, 0.0, h.v0));
+            let mut q = dof(format!("{}.angle", h.name), DofMode::Free, 0.0, h.v0);
+            q.v0_explicit = h.v0_explicit;
+            dofs.push(q);
             hinges.push(Hinge {
                 name: h.name,
                 dof: dofs.len() - 1,
@@ -434,12 +460,37 @@ impl Compiler<'_> {
         for (i, l) in spec.loads.iter().enumerate() {
             let f = format!("loads[{i}]");
             let l = l.get_ref();
+            if let Some(fo) = &l.follower {
+                if *fo.get_ref() {
+                    return Err(self.err(
+                        fo.span(),
+                        format!("{f}.follower"),
+                        "follower loads are not supported yet (loads keep their global \
+                         direction: follower = false)",
+                    ));
+                }
+            }
+            let scale = l
+                .scale
+                .as_ref()
+                .map(|sc| self.time_function(sc, &format!("{f}.scale")))
+                .transpose()?;
             loads.push(NodeLoad {
                 node: self.lookup(&node_names, &l.node, &format!("{f}.node"), "node")?,
                 force: self.opt_vec3(&l.force, &format!("{f}.force"))?,
                 moment: self.opt_vec3(&l.moment, &format!("{f}.moment"))?,
+                scale,
             });
         }
+        let initial_rotation = match &spec.initial {
+            None => None,
+            Some(ini) => {
+                let ini = ini.get_ref();
+                let omega = self.vec3(&ini.angular_velocity, "initial.angular_velocity")?;
+                let center = self.opt_vec3(&ini.center, "initial.center")?;
+                Some((omega, center))
+            }
+        };
         let gravity = match &spec.environment {
             Some(e) => self.opt_vec3(&e.get_ref().gravity, "environment.gravity")?,
             None => [0.0; 3],
@@ -450,6 +501,7 @@ impl Compiler<'_> {
             &node_names,
             &beams,
             &body_names,
+            &body_dofs,
             &joint_names,
             &joint_hinge,
         )?;
@@ -482,6 +534,7 @@ impl Compiler<'_> {
             sensors,
             solver,
             n_eq,
+            initial_rotation,
         })
     }
 
@@ -806,7 +859,12 @@ impl Compiler<'_> {
                                 }
                             },
                         };
-                        let qs = ["x", "y", "z"].map(|c| free_dof(format!("{qname}.{c}")));
+                        let explicit = d.initial_rate.is_some();
+                        let qs = ["x", "y", "z"].map(|c| {
+                            let mut q = free_dof(format!("{qname}.{c}"));
+                            q.v0_explicit = explicit;
+                            q
+                        });
                         DofDraft::FreeRotation(Box::new(qs), omega0)
                     }
                 });
@@ -842,23 +900,29 @@ impl Compiler<'_> {
                     NumOrVec::Vec(_) => return Err(self.err(r.span(), fr, "must be a number")),
                 },
             };
-            return Ok(dof(name, DofMode::Free, q0, v0));
+            let mut q = dof(name, DofMode::Free, q0, v0);
+            q.v0_explicit = d.initial_rate.is_some();
+            return Ok(q);
         };
         let why = "cannot be combined with `drive` (a driven dof starts where its drive does)";
         self.forbid(&d.initial, &format!("{fd}.initial"), why)?;
         self.forbid(&d.initial_rate, &format!("{fd}.initial_rate"), why)?;
-        let fdr = format!("{fd}.drive");
-        let tf = match drive.get_ref() {
-            Num::Value(v) => {
-                self.num_at(&Num::Value(*v), drive.span(), &fdr)?;
-                TimeFunction::constant(*v)
-            }
-            Num::Expr(s) => {
-                TimeFunction::new(s, &self.params).map_err(|e| self.err(drive.span(), &fdr, e))?
-            }
-        };
+        let tf = self.time_function(drive, &format!("{fd}.drive"))?;
         let [q0, v0, _] = tf.eval(0.0);
         Ok(dof(name, DofMode::Driven(tf), q0, v0))
+    }
+
+    /// A function of the time `t` and the parameters (a number is a constant).
+    fn time_function(&self, n: &Spanned<Num>, field: &str) -> Result<TimeFunction> {
+        match n.get_ref() {
+            Num::Value(v) => {
+                self.num_at(&Num::Value(*v), n.span(), field)?;
+                Ok(TimeFunction::constant(*v))
+            }
+            Num::Expr(s) => {
+                TimeFunction::new(s, &self.params).map_err(|e| self.err(n.span(), field, e))
+            }
+        }
     }
 
     fn axes(&self, axes: &Spanned<Vec<Spanned<Vector>>>, f: &str) -> Result<Mat3> {
@@ -1206,6 +1270,7 @@ impl Compiler<'_> {
                         v0: self
                             .opt_num(&j.initial_rate, &format!("{f}.initial_rate"))?
                             .unwrap_or(0.0),
+                        v0_explicit: j.initial_rate.is_some(),
                     });
                     Some(hinges.len() - 1)
                 }
@@ -1246,12 +1311,14 @@ impl Compiler<'_> {
         Ok((drafts, hinges, names, joint_hinge))
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn sensors(
         &self,
         spec: &Spec,
         node_names: &[String],
         beams: &[Beam],
         body_names: &[String],
+        body_dofs: &[Vec<BodyDofRef>],
         joint_names: &[String],
         joint_hinge: &[Option<usize>],
     ) -> Result<Vec<Sensor>> {
@@ -1278,14 +1345,18 @@ impl Compiler<'_> {
                 ("joint", s.joint.as_ref().map(|x| x.span())),
                 ("body", s.body.as_ref().map(|x| x.span())),
                 ("direction", s.direction.as_ref().map(|x| x.span())),
+                ("dof", s.dof.as_ref().map(|x| x.span())),
+                ("frame", s.frame.as_ref().map(|x| x.span())),
             ];
             let allowed: &[&str] = match kind {
                 SensorType::Node | SensorType::Position => &["node"],
-                SensorType::Section => &["beam", "at", "component"],
+                SensorType::Section => &["beam", "at", "component", "frame"],
                 SensorType::Hinge => &["joint"],
                 SensorType::Body => &["body"],
                 SensorType::Direction => &["node", "direction"],
                 SensorType::Energy => &[],
+                SensorType::Driver => &["body", "dof"],
+                SensorType::BeamNodes => &["beam", "component"],
             };
             for (k, sp) in present {
                 if let (Some(sp), false) = (sp, allowed.contains(&k)) {
@@ -1296,10 +1367,16 @@ impl Compiler<'_> {
                     ));
                 }
             }
+            // optional keys are not mentioned as needed
+            let needed: Vec<&str> = allowed
+                .iter()
+                .copied()
+                .filter(|k| !(kind == SensorType::Section && matches!(*k, "component" | "frame")))
+                .collect();
             let why = format!(
                 " (sensor type `{}` needs {})",
                 kind.as_str(),
-                allowed.join(", ")
+                needed.join(", ")
             );
             let node = |fld: &Option<Spanned<String>>| -> Result<usize> {
                 let fk = format!("{f}.node");
@@ -1349,6 +1426,19 @@ impl Compiler<'_> {
                     SensorKind::HingeAngle { hinge }
                 }
                 SensorType::Section => {
+                    if let Some(fr) = &s.frame {
+                        if fr.get_ref() != "local" {
+                            return Err(self.err(
+                                fr.span(),
+                                format!("{f}.frame"),
+                                format!(
+                                    "unknown frame `{}` (only `local`, the convected frame of \
+                                     the section, is supported)",
+                                    fr.get_ref()
+                                ),
+                            ));
+                        }
+                    }
                     let fb = format!("{f}.beam");
                     let b = self.lookup(
                         &beam_names,
@@ -1398,6 +1488,69 @@ impl Compiler<'_> {
                     }
                 }
                 SensorType::Energy => SensorKind::Energy,
+                SensorType::Driver => {
+                    let fb = format!("{f}.body");
+                    let bn = self.required(&s.body, span.clone(), &fb, &why)?;
+                    let b = self.lookup(body_names, bn, &fb, "body")?;
+                    let fd = format!("{f}.dof");
+                    let dn = self.required(&s.dof, span.clone(), &fd, &why)?;
+                    let k = self.integer(dn, &fd, 0)?;
+                    let refs = &body_dofs[b];
+                    let r = refs.get(k).ok_or_else(|| {
+                        self.err(
+                            dn.span(),
+                            &fd,
+                            format!(
+                                "body `{}` has {} dofs (indices from 0), no dof {k}",
+                                bn.get_ref(),
+                                refs.len()
+                            ),
+                        )
+                    })?;
+                    if !r.driven {
+                        return Err(self.err(
+                            dn.span(),
+                            &fd,
+                            format!(
+                                "dof {k} of body `{}` is free, not driven: a driver sensor \
+                                 needs a dof with `drive`",
+                                bn.get_ref()
+                            ),
+                        ));
+                    }
+                    SensorKind::DriverForce {
+                        dof: r.dof,
+                        rotational: r.rotational,
+                    }
+                }
+                SensorType::BeamNodes => {
+                    let fb = format!("{f}.beam");
+                    let b = self.lookup(
+                        &beam_names,
+                        self.required(&s.beam, span.clone(), &fb, &why)?,
+                        &fb,
+                        "beam",
+                    )?;
+                    let fc = format!("{f}.component");
+                    let c = self.required(&s.component, span.clone(), &fc, &why)?;
+                    let axis = ["x", "y", "z"]
+                        .iter()
+                        .position(|x| x == c.get_ref())
+                        .ok_or_else(|| {
+                            self.err(
+                                c.span(),
+                                &fc,
+                                format!(
+                                    "unknown component `{}` (one of x, y, z: a global axis)",
+                                    c.get_ref()
+                                ),
+                            )
+                        })?;
+                    SensorKind::BeamDisplacement {
+                        nodes: beams[b].nodes.clone(),
+                        axis,
+                    }
+                }
             };
             out.push(Sensor { name, kind });
         }

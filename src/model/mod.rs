@@ -4,6 +4,8 @@
 pub mod compile;
 mod error;
 pub mod expr;
+#[cfg(test)]
+mod feature_tests;
 pub mod spec;
 mod types;
 

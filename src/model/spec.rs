@@ -296,6 +296,16 @@ pub struct Spec {
     #[serde(default)]
     pub sensors: Vec<Spanned<SensorSpec>>,
     pub solver: Option<Spanned<SolverSpec>>,
+    pub initial: Option<Spanned<InitialSpec>>,
+}
+
+/// `[initial]`: the whole model starts in rigid rotation with `angular_velocity` about
+/// `center` (default the origin).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    pub angular_velocity: Spanned<Vector>,
+    pub center: Option<Spanned<Vector>>,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -392,6 +402,10 @@ pub struct LoadSpec {
     pub node: Spanned<String>,
     pub force: Option<Spanned<Vector>>,
     pub moment: Option<Spanned<Vector>>,
+    /// time factor on force and moment (dynamics only), an expression in `t`
+    pub scale: Option<Spanned<Num>>,
+    /// only `false` (dead loads) is supported
+    pub follower: Option<Spanned<bool>>,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -459,7 +473,7 @@ pub struct JointSpec {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "snake_case")]
 pub enum SensorType {
     Node,
     Position,
@@ -468,6 +482,8 @@ pub enum SensorType {
     Body,
     Direction,
     Energy,
+    Driver,
+    BeamNodes,
 }
 
 impl SensorType {
@@ -480,6 +496,8 @@ impl SensorType {
             SensorType::Body => "body",
             SensorType::Direction => "direction",
             SensorType::Energy => "energy",
+            SensorType::Driver => "driver",
+            SensorType::BeamNodes => "beam_nodes",
         }
     }
 }
@@ -497,6 +515,10 @@ pub struct SensorSpec {
     pub joint: Option<Spanned<String>>,
     pub body: Option<Spanned<String>>,
     pub direction: Option<Spanned<Vector>>,
+    /// driver sensors: index into the body's `[[bodies.dofs]]` (from 0)
+    pub dof: Option<Spanned<Num>>,
+    /// section sensors: output frame (only `local`, the convected frame)
+    pub frame: Option<Spanned<String>>,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]

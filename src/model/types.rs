@@ -63,6 +63,9 @@ pub struct Dof {
     /// initial value (ignored for spin components) and initial rate
     pub q0: f64,
     pub v0: f64,
+    /// the initial rate was given in the file (`initial_rate`): it overrides the rigid
+    /// field of `Model::initial_rotation`
+    pub v0_explicit: bool,
     /// index among the free dofs (the unknowns), None if driven
     pub eq: Option<usize>,
 }
@@ -157,6 +160,9 @@ pub struct NodeLoad {
     pub node: usize,
     pub force: Vec3,
     pub moment: Vec3,
+    /// time factor s(t) on force and moment, applied in dynamics only (statics applies
+    /// loads at full value)
+    pub scale: Option<crate::model::expr::TimeFunction>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -182,6 +188,11 @@ pub enum SensorKind {
     NodeDirection { node: usize, dir: Vec3 },
     /// kinetic, strain energy, work of drivers
     Energy,
+    /// generalized force the driver of (global) dof `dof` supplies; `rotational`: a
+    /// moment [N·m] rather than a force [N]
+    DriverForce { dof: usize, rotational: bool },
+    /// displacement of each node of a beam (from → to) along global axis `axis` (0, 1, 2)
+    BeamDisplacement { nodes: Vec<usize>, axis: usize },
 }
 
 pub const SECTION_COMPONENTS: [&str; 6] = ["N", "Vy", "Vz", "T", "My", "Mz"];
@@ -255,6 +266,8 @@ pub struct Model {
     pub solver: SolverSettings,
     /// number of free dofs (unknowns)
     pub n_eq: usize,
+    /// `[initial]`: rigid rotation (omega, center) the free dofs start in
+    pub initial_rotation: Option<(Vec3, Vec3)>,
 }
 
 impl Model {

@@ -328,7 +328,16 @@ impl<'m> Integrator<'m> {
         self.model
             .sensors
             .iter()
-            .map(|sn| sensors::sample(self.model, &self.asm, &self.s, &sn.kind, &self.energies))
+            .map(|sn| {
+                sensors::sample(
+                    self.model,
+                    &self.asm,
+                    &self.s,
+                    &sn.kind,
+                    &self.energies,
+                    &self.sys.gen,
+                )
+            })
             .collect()
     }
 }

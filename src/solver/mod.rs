@@ -48,10 +48,20 @@ pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsEr
         gravity: 0.0,
         driver_work: 0.0,
     };
+    // generalized forces at equilibrium: at driven dofs, what the drivers supply
+    let mut gen = vec![0.0; model.dofs.len()];
+    let c = crate::assembly::Coeffs {
+        load_factor: 1.0,
+        inertia: false,
+        ck: 0.0,
+        cc: 0.0,
+        cm: 0.0,
+    };
+    asm.evaluate(model, &s, c, &mut gen, None);
     let vals = model
         .sensors
         .iter()
-        .map(|sn| sensors::sample(model, &asm, &s, &sn.kind, &en))
+        .map(|sn| sensors::sample(model, &asm, &s, &sn.kind, &en, &gen))
         .collect();
     Ok(StaticSolution {
         state: s,
