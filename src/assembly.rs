@@ -144,8 +144,8 @@ impl Assembler {
 
     /// Evaluate the residual (generalized forces, by dof, in `gen`: inertia + internal −
     /// external; zero is equilibrium) and optionally the Jacobian into `sink`.
-    /// `gen` has one entry per dof; driven dofs receive their reaction (the force the
-    /// driver must supply is −gen).
+    /// `gen` has one entry per dof; for a driven dof it is the generalized force the
+    /// driver must supply to impose its motion.
     pub fn evaluate(
         &self,
         model: &Model,

@@ -197,6 +197,9 @@ fn statics(args: &ModelArgs) -> anyhow::Result<()> {
 
 fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     let m = args.model.load()?;
+    if let Some(spin) = latdyn::solver::rotating::find_spin(&m) {
+        return rotating_modes(args, &m, spin);
+    }
     let preload = match args.about.as_str() {
         "static" => true,
         "reference" => false,
@@ -245,6 +248,38 @@ fn modes(args: &ModesArgs) -> anyhow::Result<()> {
                 "reference"
             },
             m.n_eq
+        );
+        for (k, x) in f.iter().enumerate() {
+            s += &format!("  {:>3}  {:>14.6} Hz\n", k + 1, x);
+        }
+        emit(&s)
+    }
+}
+
+/// Modes of a model with a hub at constant speed: about the steady rotating state, in
+/// the rotating frame.
+fn rotating_modes(
+    args: &ModesArgs,
+    m: &Model,
+    spin: latdyn::solver::rotating::Spin,
+) -> anyhow::Result<()> {
+    let rm = latdyn::solver::rotating::rotating_modes(m, spin)
+        .with_context(|| format!("{}: rotating-frame modes", m.path))?;
+    let count = args.count.min(rm.frequencies_hz.len());
+    let f = &rm.frequencies_hz[..count];
+    if args.model.json {
+        let v = serde_json::json!({
+            "frequencies_hz": f,
+            "damping_ratios": &rm.damping[..count],
+            "about": "steady_rotation",
+            "omega_rad_s": rm.omega,
+            "free_dofs": m.n_eq,
+        });
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "modes {} in the frame rotating at {:.6} rad/s, about the steady state ({} free dofs)\n",
+            m.name, rm.omega, m.n_eq
         );
         for (k, x) in f.iter().enumerate() {
             s += &format!("  {:>3}  {:>14.6} Hz\n", k + 1, x);
