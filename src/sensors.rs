@@ -17,6 +17,7 @@ pub fn components(kind: &SensorKind) -> Vec<&'static str> {
         SensorKind::SectionComponent { component, .. } => vec![SECTION_COMPONENTS[*component]],
         SensorKind::HingeAngle { .. } => vec!["angle", "rate"],
         SensorKind::NodeDirection { .. } => vec!["u"],
+        SensorKind::BodyFrameDisplacement { axis, .. } => vec![["x", "y", "z"][*axis]],
         SensorKind::Energy => vec!["kinetic", "strain", "gravity", "driver_work", "total"],
         SensorKind::DriverForce { .. } => vec!["force"],
         SensorKind::BeamDisplacement { nodes, .. } => node_component_names(nodes.len()),
@@ -50,7 +51,7 @@ pub fn units(kind: &SensorKind) -> Vec<&'static str> {
             vec![if *component < 3 { "N" } else { "N*m" }]
         }
         SensorKind::HingeAngle { .. } => vec!["rad", "rad/s"],
-        SensorKind::NodeDirection { .. } => vec!["m"],
+        SensorKind::NodeDirection { .. } | SensorKind::BodyFrameDisplacement { .. } => vec!["m"],
         SensorKind::Energy => vec!["J"; 5],
         SensorKind::DriverForce { rotational, .. } => {
             vec![if *rotational { "N*m" } else { "N" }]
@@ -118,6 +119,15 @@ pub fn sample(
             vec![x[0], x[1], x[2], r[0], r[1], r[2]]
         }
         SensorKind::NodeDirection { node, dir } => vec![dot(s.node_u[*node], *dir)],
+        SensorKind::BodyFrameDisplacement { node, body, axis } => {
+            let b = &model.bodies[*body];
+            let now = mat_t_vec(
+                &s.body_r[*body],
+                sub(joint::node_position(model, s, *node), s.body_x[*body]),
+            );
+            let then = mat_t_vec(&b.r0, sub(model.x0[*node], b.x0));
+            vec![now[*axis] - then[*axis]]
+        }
         SensorKind::Energy => vec![
             energies.kinetic,
             energies.strain,

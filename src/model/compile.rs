@@ -1357,6 +1357,7 @@ impl Compiler<'_> {
                 SensorType::Energy => &[],
                 SensorType::Driver => &["body", "dof"],
                 SensorType::BeamNodes => &["beam", "component"],
+                SensorType::BodyFrame => &["node", "body", "component"],
             };
             for (k, sp) in present {
                 if let (Some(sp), false) = (sp, allowed.contains(&k)) {
@@ -1400,6 +1401,32 @@ impl Compiler<'_> {
                     let dir =
                         self.unit(self.required(&s.direction, span.clone(), &fd, &why)?, &fd)?;
                     SensorKind::NodeDirection { node, dir }
+                }
+                SensorType::BodyFrame => {
+                    let node = node(&s.node)?;
+                    let fb = format!("{f}.body");
+                    let body = self.lookup(
+                        body_names,
+                        self.required(&s.body, span.clone(), &fb, &why)?,
+                        &fb,
+                        "body",
+                    )?;
+                    let fc = format!("{f}.component");
+                    let c = self.required(&s.component, span.clone(), &fc, &why)?;
+                    let axis = ["x", "y", "z"]
+                        .iter()
+                        .position(|x| x == c.get_ref())
+                        .ok_or_else(|| {
+                            self.err(
+                                c.span(),
+                                &fc,
+                                format!(
+                                    "unknown component `{}` (one of x, y, z: a body axis)",
+                                    c.get_ref()
+                                ),
+                            )
+                        })?;
+                    SensorKind::BodyFrameDisplacement { node, body, axis }
                 }
                 SensorType::Body => {
                     let fb = format!("{f}.body");

@@ -484,6 +484,7 @@ pub enum SensorType {
     Energy,
     Driver,
     BeamNodes,
+    BodyFrame,
 }
 
 impl SensorType {
@@ -498,6 +499,7 @@ impl SensorType {
             SensorType::Energy => "energy",
             SensorType::Driver => "driver",
             SensorType::BeamNodes => "beam_nodes",
+            SensorType::BodyFrame => "body_frame",
         }
     }
 }

@@ -186,6 +186,13 @@ pub enum SensorKind {
     BodyPose { body: usize },
     /// a node's displacement projected on a global direction (scalar)
     NodeDirection { node: usize, dir: Vec3 },
+    /// displacement of a node seen from a body: the change of its position in the body
+    /// frame, component `axis` (0, 1, 2 = body x, y, z)
+    BodyFrameDisplacement {
+        node: usize,
+        body: usize,
+        axis: usize,
+    },
     /// kinetic, strain energy, work of drivers
     Energy,
     /// generalized force the driver of (global) dof `dof` supplies; `rotational`: a

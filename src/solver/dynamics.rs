@@ -320,6 +320,8 @@ impl<'m> Integrator<'m> {
                 }
             }
         }
+        // land on the output time exactly (the step sums carry round-off)
+        self.s.t = t_target;
         Ok(())
     }
 
