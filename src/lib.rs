@@ -12,6 +12,7 @@
 
 pub mod assembly;
 pub mod element;
+pub mod ensemble;
 pub mod joint;
 pub mod linalg;
 pub mod math;

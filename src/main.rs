@@ -35,7 +35,7 @@ enum Verb {
     /// Time integration from 0 to t_end
     Run(RunArgs),
     /// Runs over a range of parameter values
-    Sweep(RunArgs),
+    Sweep(SweepArgs),
     /// Plot sensor histories of a results file
     Plot(PlotArgs),
     /// Time the stages of a run
@@ -91,6 +91,44 @@ struct ModesArgs {
 }
 
 #[derive(Args)]
+struct SweepArgs {
+    #[command(flatten)]
+    model: ModelArgs,
+    /// vary a parameter: NAME=START:STOP:COUNT (repeatable; several make a full grid)
+    #[arg(long = "vary", value_name = "NAME=START:STOP:COUNT", value_parser = latdyn::ensemble::Range::parse)]
+    vary: Vec<latdyn::ensemble::Range>,
+    /// explicit variants: CSV with a header of parameter names, one row per variant
+    #[arg(long, value_name = "CSV")]
+    variants: Option<PathBuf>,
+    /// campaign file (HDF5)
+    #[arg(short, long, value_name = "PATH")]
+    output: Option<PathBuf>,
+    /// element evaluation backend (this build: cpu; auto picks cpu)
+    #[arg(long, default_value = "auto", value_parser = ["auto", "cpu", "gpu"])]
+    backend: String,
+    /// worker threads (default: all cores)
+    #[arg(long)]
+    threads: Option<usize>,
+    /// run only the K-th of N interleaved subsets of the variants: K/N
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    shard: Option<(usize, usize)>,
+    /// sensor (SENSOR or SENSOR.COMPONENT) whose dominant frequency is reported as
+    /// derived.first_bending_hz
+    #[arg(long, value_name = "SENSOR[.COMPONENT]")]
+    frequency: Option<String>,
+}
+
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let (k, n) = s.split_once('/').ok_or("expected K/N")?;
+    let k: usize = k.trim().parse().map_err(|_| "K must be an integer")?;
+    let n: usize = n.trim().parse().map_err(|_| "N must be an integer")?;
+    if n == 0 || k == 0 || k > n {
+        return Err(format!("{s}: need 1 ≤ K ≤ N"));
+    }
+    Ok((k, n))
+}
+
+#[derive(Args)]
 struct RunArgs {
     #[command(flatten)]
     model: ModelArgs,
@@ -117,6 +155,7 @@ fn main() -> ExitCode {
         Verb::Statics(a) => statics(a),
         Verb::Modes(a) => modes(a),
         Verb::Run(a) => run(a),
+        Verb::Sweep(a) => sweep(a),
         other => run_verb(other),
     };
     match result {
@@ -138,7 +177,10 @@ fn run_verb(verb: &Verb) -> anyhow::Result<()> {
         Verb::Modes(a) => {
             a.model.load()?;
         }
-        Verb::Run(a) | Verb::Sweep(a) => {
+        Verb::Run(a) => {
+            a.model.load()?;
+        }
+        Verb::Sweep(a) => {
             a.model.load()?;
         }
         Verb::Check(_) | Verb::Plot(_) => {}
@@ -294,7 +336,14 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
     let (hist, stats, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
     let wall = t0.elapsed().as_secs_f64();
     if let Some(path) = &args.output {
-        write_csv(&m, &hist, path)?;
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+        {
+            write_csv(&m, &hist, path)?;
+        } else {
+            write_single_h5(&m, &hist, &stats, err.as_ref(), wall, path)?;
+        }
     }
     if let Some(e) = &err {
         eprintln!("error: {}: {e}", m.path);
@@ -341,6 +390,241 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(e) => Err(anyhow!("{}: {e}", m.path)),
         None => Ok(()),
     }
+}
+
+/// One run in the campaign layout (one variant).
+fn write_single_h5(
+    m: &Model,
+    hist: &latdyn::solver::dynamics::History,
+    stats: &latdyn::solver::dynamics::RunStats,
+    err: Option<&latdyn::solver::dynamics::DynamicsError>,
+    wall: f64,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    use latdyn::output::*;
+    let meta = CampaignMeta {
+        command_line: std::env::args().collect::<Vec<_>>().join(" "),
+        model_path: m.path.clone(),
+        model_source: m.source.clone(),
+        backend: "cpu".into(),
+        precision: "f64".into(),
+        threads: 1,
+        parameter_names: m.params.iter().map(|(n, _)| n.clone()).collect(),
+        parameter_values: vec![m.params.iter().map(|(_, v)| *v).collect()],
+        global_index: vec![0],
+        time: latdyn::solver::dynamics::output_times(m),
+        sensors: m
+            .sensors
+            .iter()
+            .map(|s| SensorMeta {
+                name: s.name.clone(),
+                components: latdyn::sensors::components(&s.kind)
+                    .iter()
+                    .map(|x| x.to_string())
+                    .collect(),
+                units: latdyn::sensors::units(&s.kind)
+                    .iter()
+                    .map(|x| x.to_string())
+                    .collect(),
+            })
+            .collect(),
+    };
+    let mut w = CampaignWriter::create(path, &meta)?;
+    for i in 0..hist.t.len() {
+        let vals: Vec<Vec<f64>> = hist.values.iter().map(|v| v[i].clone()).collect();
+        w.write_samples(0, i, &vals)?;
+    }
+    w.set_status(
+        0,
+        &VariantStatus {
+            state: if err.is_some() {
+                VariantState::Failed
+            } else {
+                VariantState::Completed
+            },
+            message: err.map(|e| e.to_string()).unwrap_or_default(),
+            t_fail: err.map(|e| e.time()).unwrap_or(f64::NAN),
+            steps: stats.steps as u64,
+            rejected_steps: stats.rejected_steps as u64,
+            wall_s: wall,
+        },
+    )?;
+    w.finish("complete")?;
+    Ok(())
+}
+
+fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
+    use latdyn::ensemble::{self, Campaign};
+    use std::io::IsTerminal;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    if args.backend == "gpu" {
+        return Err(anyhow!(
+            "--backend gpu: no GPU backend in this build (the WGSL kernels are not built yet); use --backend cpu"
+        ));
+    }
+    let mut variants = ensemble::grid(&args.vary);
+    if let Some(csv) = &args.variants {
+        let rows = ensemble::read_variants_csv(csv)?;
+        variants = if args.vary.is_empty() {
+            rows
+        } else {
+            // the CSV rows crossed with the --vary grid
+            rows.iter()
+                .flat_map(|r| {
+                    variants.iter().map(move |g| {
+                        let mut x = r.clone();
+                        x.extend(g.iter().cloned());
+                        x
+                    })
+                })
+                .collect()
+        };
+    }
+    let frequency_sensor = match &args.frequency {
+        None => None,
+        Some(spec) => {
+            let m = args.model.load()?;
+            let (name, comp) = spec.split_once('.').unwrap_or((spec.as_str(), ""));
+            let k = m
+                .sensor_index(name)
+                .ok_or_else(|| anyhow!("--frequency: the model has no sensor `{name}`"))?;
+            let comps = latdyn::sensors::components(&m.sensors[k].kind);
+            let c = if comp.is_empty() {
+                0
+            } else {
+                comps.iter().position(|c| *c == comp).ok_or_else(|| {
+                    anyhow!(
+                        "--frequency: sensor `{name}` has no component `{comp}` (it has {})",
+                        comps.join(", ")
+                    )
+                })?
+            };
+            Some((name.to_string(), c))
+        }
+    };
+    let threads = args.threads.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let c = Campaign {
+        model_path: args.model.model.clone(),
+        base: args.model.set.clone(),
+        variants,
+        threads,
+        output: args.output.clone(),
+        shard: args.shard,
+        frequency_sensor,
+        command_line: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    let prepared = ensemble::prepare(&c)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // a second Ctrl-C falls through to the default handler only after the first
+        // has been seen; ignore registration failure (not a terminal, tests)
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
+    }
+    let bar = if std::io::stderr().is_terminal() {
+        let b = indicatif::ProgressBar::new(prepared.models.len() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} variants, {elapsed} elapsed, ETA {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Some(b)
+    } else {
+        None
+    };
+    let t0 = std::time::Instant::now();
+    let outcomes = ensemble::run(&c, &prepared, &stop, false, &|done, _| {
+        if let Some(b) = &bar {
+            b.set_position(done as u64);
+        }
+    })?;
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let wall = t0.elapsed().as_secs_f64();
+    let failed = outcomes
+        .iter()
+        .filter(|o| o.state != latdyn::output::VariantState::Completed)
+        .count();
+    eprintln!(
+        "sweep {}: {} variants ({} not completed) in {:.2} s on {} threads{}",
+        c.model_path.display(),
+        outcomes.len(),
+        failed,
+        wall,
+        threads,
+        c.output
+            .as_ref()
+            .map(|p| format!(", written to {}", p.display()))
+            .unwrap_or_default()
+    );
+    if args.model.json {
+        let m0 = prepared.models.first();
+        let vs: Vec<serde_json::Value> = outcomes
+            .iter()
+            .map(|o| {
+                let sensors: serde_json::Map<String, serde_json::Value> = m0
+                    .map(|m| {
+                        m.sensors
+                            .iter()
+                            .zip(&o.sensors)
+                            .map(|(s, x)| {
+                                (
+                                    s.name.clone(),
+                                    serde_json::json!({"min": x.min, "max": x.max, "final": x.last}),
+                                )
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                let params: serde_json::Map<String, serde_json::Value> = o
+                    .parameters
+                    .iter()
+                    .map(|(n, v)| (n.clone(), serde_json::json!(v)))
+                    .collect();
+                let derived: serde_json::Map<String, serde_json::Value> = o
+                    .derived
+                    .iter()
+                    .map(|(n, v)| (n.clone(), serde_json::json!(v)))
+                    .collect();
+                serde_json::json!({
+                    "index": o.global_index,
+                    "parameters": params,
+                    "status": match o.state {
+                        latdyn::output::VariantState::Completed => "completed",
+                        latdyn::output::VariantState::Interrupted => "interrupted",
+                        _ => "failed",
+                    },
+                    "message": o.message,
+                    "steps": o.steps,
+                    "rejected_steps": o.rejected_steps,
+                    "wall_s": o.wall_s,
+                    "sensors": sensors,
+                    "derived": derived,
+                })
+            })
+            .collect();
+        let v = serde_json::json!({
+            "variants": vs,
+            "wall_s": wall,
+            "backend": "cpu",
+            "precision": "f64",
+            "threads": threads,
+        });
+        emit(&format!("{v}\n"))?;
+    }
+    if stop.load(Ordering::Relaxed) {
+        return Err(anyhow!(
+            "interrupted: the campaign file is marked interrupted"
+        ));
+    }
+    Ok(())
 }
 
 /// Sensor histories as CSV: time, then every sensor component.

@@ -23,8 +23,20 @@ pub enum DynamicsError {
         residual: f64,
         dof: String,
     },
+    #[error("interrupted at t = {t:.6} s")]
+    Interrupted { t: f64 },
     #[error("linear solver: {0}")]
     Linear(#[from] crate::linalg::LinalgError),
+}
+
+impl DynamicsError {
+    /// Time of the failure, if the run got going.
+    pub fn time(&self) -> f64 {
+        match self {
+            DynamicsError::NoConvergence { t, .. } | DynamicsError::Interrupted { t } => *t,
+            DynamicsError::Linear(_) => 0.0,
+        }
+    }
 }
 
 /// Generalized-α parameters from the spectral radius at infinite frequency.
@@ -356,6 +368,15 @@ pub fn output_times(model: &Model) -> Vec<f64> {
 /// (for incremental writers). On failure the history so far is returned with the error.
 pub fn run(
     model: &Model,
+    on_sample: impl FnMut(f64, &[Vec<f64>]),
+) -> (History, RunStats, Option<DynamicsError>) {
+    run_until(model, None, on_sample)
+}
+
+/// As [`run`], stopping at the next output sample once `stop` is set.
+pub fn run_until(
+    model: &Model,
+    stop: Option<&std::sync::atomic::AtomicBool>,
     mut on_sample: impl FnMut(f64, &[Vec<f64>]),
 ) -> (History, RunStats, Option<DynamicsError>) {
     let mut hist = History {
@@ -375,6 +396,14 @@ pub fn run(
         }
     };
     for (i, t) in output_times(model).into_iter().enumerate() {
+        if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) {
+            let t = integ.s.t;
+            return (
+                hist,
+                integ.stats.clone(),
+                Some(DynamicsError::Interrupted { t }),
+            );
+        }
         if i > 0 {
             if let Err(e) = integ.advance_to(t) {
                 return (hist, integ.stats.clone(), Some(e));

@@ -1,0 +1,491 @@
+//! Ensembles: many variants of one model in one run, written to one HDF5 file.
+//!
+//! Every variant is compiled from the same file with its own parameter values; all must
+//! share the topology (nodes, elements, coordinates, sensors) and the output time grid,
+//! which is checked before any work starts. Variants run in parallel on a rayon pool,
+//! each with its own state and step control, so a variant that cuts its step slows only
+//! itself, and one that fails is marked failed while the others complete. Each variant
+//! runs exactly the code path of a single `run`, so its numbers are bit-identical to
+//! running it alone. Each finished variant's samples go into the campaign file, which is
+//! flushed (rewritten atomically) at most every 2 s and at the end; on Ctrl-C the
+//! variants in flight stop at their next output sample, their samples so far are kept,
+//! and the file is finished as "interrupted".
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::model::{self, Model};
+use crate::output::{
+    CampaignMeta, CampaignWriter, OutputError, SensorMeta, VariantState, VariantStatus,
+};
+use crate::sensors;
+use crate::solver::dynamics::{self, DynamicsError};
+
+#[derive(Debug, thiserror::Error)]
+pub enum EnsembleError {
+    #[error("{0}")]
+    Model(#[from] model::ModelError),
+    #[error("{0}")]
+    Output(#[from] OutputError),
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// Shortest time between two flushes of the campaign file [s]: each flush rewrites the
+/// file, so flushing after every short variant would serialise the workers.
+const FLUSH_INTERVAL_S: f64 = 2.0;
+
+/// A `--vary NAME=START:STOP:COUNT` range.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Range {
+    pub name: String,
+    pub start: f64,
+    pub stop: f64,
+    pub count: usize,
+}
+
+impl Range {
+    /// Parse `NAME=START:STOP:COUNT` (START, STOP may be expressions such as `2*pi`).
+    pub fn parse(s: &str) -> Result<Range, String> {
+        let (name, rest) = s
+            .split_once('=')
+            .ok_or_else(|| format!("`{s}`: expected NAME=START:STOP:COUNT"))?;
+        let parts: Vec<&str> = rest.split(':').collect();
+        if parts.len() != 3 {
+            return Err(format!("`{s}`: expected NAME=START:STOP:COUNT"));
+        }
+        let num = |t: &str| model::expr::eval(t.trim(), &[]).map_err(|e| format!("`{s}`: {e}"));
+        let count: usize = parts[2]
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{s}`: COUNT must be a positive integer"))?;
+        if count == 0 {
+            return Err(format!("`{s}`: COUNT must be at least 1"));
+        }
+        Ok(Range {
+            name: name.trim().to_string(),
+            start: num(parts[0])?,
+            stop: num(parts[1])?,
+            count,
+        })
+    }
+
+    pub fn values(&self) -> Vec<f64> {
+        if self.count == 1 {
+            return vec![self.start];
+        }
+        (0..self.count)
+            .map(|i| self.start + (self.stop - self.start) * i as f64 / (self.count - 1) as f64)
+            .collect()
+    }
+}
+
+/// The full grid of several ranges (last range varies fastest).
+pub fn grid(ranges: &[Range]) -> Vec<Vec<(String, f64)>> {
+    let mut out: Vec<Vec<(String, f64)>> = vec![vec![]];
+    for r in ranges {
+        let mut next = Vec::with_capacity(out.len() * r.count);
+        for row in &out {
+            for v in r.values() {
+                let mut row = row.clone();
+                row.push((r.name.clone(), v));
+                next.push(row);
+            }
+        }
+        out = next;
+    }
+    out
+}
+
+/// Variants from a CSV file: a header of parameter names, one row of values per variant.
+pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, EnsembleError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| EnsembleError::Invalid(format!("{}: cannot read: {e}", path.display())))?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| EnsembleError::Invalid(format!("{}: empty file", path.display())))?;
+    let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
+    let mut rows = Vec::new();
+    for (ln, line) in lines {
+        let vals: Vec<&str> = line.split(',').map(str::trim).collect();
+        if vals.len() != names.len() {
+            return Err(EnsembleError::Invalid(format!(
+                "{}:{}: {} values for {} columns",
+                path.display(),
+                ln + 1,
+                vals.len(),
+                names.len()
+            )));
+        }
+        let mut row = Vec::new();
+        for (n, v) in names.iter().zip(vals) {
+            let x: f64 = v.parse().map_err(|_| {
+                EnsembleError::Invalid(format!(
+                    "{}:{}: column `{n}`: `{v}` is not a number",
+                    path.display(),
+                    ln + 1
+                ))
+            })?;
+            row.push((n.clone(), x));
+        }
+        rows.push(row);
+    }
+    if rows.is_empty() {
+        return Err(EnsembleError::Invalid(format!(
+            "{}: no variant rows under the header",
+            path.display()
+        )));
+    }
+    Ok(rows)
+}
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct Campaign {
+    pub model_path: PathBuf,
+    /// `--set` overrides shared by all variants
+    pub base: Vec<(String, f64)>,
+    /// per-variant overrides (all rows name the same parameters)
+    pub variants: Vec<Vec<(String, f64)>>,
+    pub threads: usize,
+    pub output: Option<PathBuf>,
+    /// (K, N): run only variants with index % N == K − 1
+    pub shard: Option<(usize, usize)>,
+    /// sensor (and component) whose dominant frequency becomes `first_bending_hz`
+    pub frequency_sensor: Option<(String, usize)>,
+    pub command_line: String,
+}
+
+/// Summary of one sensor over a run.
+#[derive(Clone, Debug)]
+pub struct SensorSummary {
+    pub min: Vec<f64>,
+    pub max: Vec<f64>,
+    pub last: Vec<f64>,
+}
+
+/// Outcome of one variant.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    pub global_index: usize,
+    pub parameters: Vec<(String, f64)>,
+    pub state: VariantState,
+    pub message: String,
+    pub t_fail: f64,
+    pub steps: usize,
+    pub rejected_steps: usize,
+    pub newton_iterations: usize,
+    pub wall_s: f64,
+    pub sensors: Vec<SensorSummary>,
+    pub derived: Vec<(String, f64)>,
+    /// full histories, kept only when asked for (single runs)
+    pub history: Option<dynamics::History>,
+}
+
+/// Compiled variants with their checked common layout.
+pub struct Prepared {
+    pub models: Vec<Model>,
+    pub global_index: Vec<usize>,
+    pub parameter_names: Vec<String>,
+    pub time: Vec<f64>,
+}
+
+/// Compile every variant (of this shard) and check they share topology and time grid.
+pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
+    let n_all = c.variants.len();
+    let (k, n) = c.shard.unwrap_or((1, 1));
+    if n == 0 || k == 0 || k > n {
+        return Err(EnsembleError::Invalid(format!(
+            "--shard {k}/{n}: need 1 ≤ K ≤ N"
+        )));
+    }
+    let global_index: Vec<usize> = (0..n_all).filter(|i| i % n == k - 1).collect();
+    let mut models = Vec::with_capacity(global_index.len());
+    for &gi in &global_index {
+        let mut sets = c.base.clone();
+        sets.extend(c.variants[gi].iter().cloned());
+        models.push(model::load(&c.model_path, &sets)?);
+    }
+    let parameter_names: Vec<String> = match models.first() {
+        Some(m) => m.params.iter().map(|(n, _)| n.clone()).collect(),
+        None => Vec::new(),
+    };
+    let time = models
+        .first()
+        .map(dynamics::output_times)
+        .unwrap_or_default();
+    if let Some(first) = models.first() {
+        let sig = topology(first);
+        for (m, &gi) in models.iter().zip(&global_index).skip(1) {
+            let s = topology(m);
+            if s != sig {
+                return Err(EnsembleError::Invalid(format!(
+                    "variant {gi} ({}) changes the model's topology ({}) against variant {} ({}): \
+                     all variants of a campaign must share nodes, elements, coordinates and sensors",
+                    describe(&c.variants[gi]),
+                    s,
+                    global_index[0],
+                    sig
+                )));
+            }
+            if dynamics::output_times(m) != time {
+                return Err(EnsembleError::Invalid(format!(
+                    "variant {gi} ({}) has another output time grid (t_end, dt, output_dt): \
+                     all variants must report on the same grid",
+                    describe(&c.variants[gi])
+                )));
+            }
+        }
+    }
+    Ok(Prepared {
+        models,
+        global_index,
+        parameter_names,
+        time,
+    })
+}
+
+fn describe(p: &[(String, f64)]) -> String {
+    p.iter()
+        .map(|(n, v)| format!("{n}={v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Topology signature: what must not change between variants.
+fn topology(m: &Model) -> String {
+    let sensors: Vec<String> = m
+        .sensors
+        .iter()
+        .map(|s| format!("{}:{}", s.name, sensors::components(&s.kind).len()))
+        .collect();
+    format!(
+        "{} nodes, {} elements, {} coordinates ({} free), sensors [{}]",
+        m.x0.len(),
+        m.elements.len(),
+        m.dofs.len(),
+        m.n_eq,
+        sensors.join(" ")
+    )
+}
+
+/// Run the prepared variants. `stop` ends the campaign early (Ctrl-C); `progress` is
+/// called after each finished variant with (done, total).
+pub fn run(
+    c: &Campaign,
+    p: &Prepared,
+    stop: &AtomicBool,
+    keep_history: bool,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Vec<Outcome>, EnsembleError> {
+    let nv = p.models.len();
+    let writer = match &c.output {
+        Some(path) => {
+            let first = p.models.first();
+            let meta = CampaignMeta {
+                command_line: c.command_line.clone(),
+                model_path: c.model_path.display().to_string(),
+                model_source: first.map(|m| m.source.clone()).unwrap_or_default(),
+                backend: "cpu".into(),
+                precision: "f64".into(),
+                threads: c.threads,
+                parameter_names: p.parameter_names.clone(),
+                parameter_values: p
+                    .models
+                    .iter()
+                    .map(|m| m.params.iter().map(|(_, v)| *v).collect())
+                    .collect(),
+                global_index: p.global_index.clone(),
+                time: p.time.clone(),
+                sensors: first
+                    .map(|m| {
+                        m.sensors
+                            .iter()
+                            .map(|s| SensorMeta {
+                                name: s.name.clone(),
+                                components: sensors::components(&s.kind)
+                                    .iter()
+                                    .map(|x| x.to_string())
+                                    .collect(),
+                                units: sensors::units(&s.kind)
+                                    .iter()
+                                    .map(|x| x.to_string())
+                                    .collect(),
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default(),
+            };
+            Some(Mutex::new(CampaignWriter::create(path, &meta)?))
+        }
+        None => None,
+    };
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let last_flush = Mutex::new(Instant::now());
+    let write_err: Mutex<Option<OutputError>> = Mutex::new(None);
+    let record_err = |e: OutputError| {
+        let mut g = write_err.lock().unwrap_or_else(|p| p.into_inner());
+        if g.is_none() {
+            *g = Some(e);
+        }
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(c.threads.max(1))
+        .build()
+        .map_err(|e| EnsembleError::Invalid(format!("thread pool: {e}")))?;
+    let outcomes: Vec<Outcome> = pool.install(|| {
+        (0..nv)
+            .into_par_iter()
+            .map(|v| {
+                let m = &p.models[v];
+                let t0 = Instant::now();
+                if let Some(w) = &writer {
+                    let st = VariantStatus {
+                        state: VariantState::Running,
+                        ..Default::default()
+                    };
+                    if let Err(e) = w
+                        .lock()
+                        .unwrap_or_else(|p| p.into_inner())
+                        .set_status(v, &st)
+                    {
+                        record_err(e);
+                    }
+                }
+                // samples go to the file when the variant ends (completed, failed or
+                // interrupted alike), so workers do not contend for the writer per sample
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    dynamics::run_until(m, Some(stop), |_, _| {})
+                }));
+                let wall = t0.elapsed().as_secs_f64();
+                let (hist, stats, err) = match result {
+                    Ok(r) => r,
+                    Err(panic) => {
+                        let msg = panic
+                            .downcast_ref::<String>()
+                            .cloned()
+                            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                            .unwrap_or_else(|| "unknown".into());
+                        (
+                            dynamics::History::default(),
+                            dynamics::RunStats::default(),
+                            Some(DynamicsError::NoConvergence {
+                                t: f64::NAN,
+                                dt: f64::NAN,
+                                residual: f64::NAN,
+                                dof: format!("internal error: {msg}"),
+                            }),
+                        )
+                    }
+                };
+                let (state, message, t_fail) = match &err {
+                    None => (VariantState::Completed, String::new(), f64::NAN),
+                    Some(e @ DynamicsError::Interrupted { .. }) => {
+                        (VariantState::Interrupted, e.to_string(), e.time())
+                    }
+                    Some(e) => (VariantState::Failed, e.to_string(), e.time()),
+                };
+                let summaries = summarize(m, &hist);
+                let mut derived = Vec::new();
+                if let (Some((name, comp)), VariantState::Completed) = (&c.frequency_sensor, state)
+                {
+                    if let Some(k) = m.sensor_index(name) {
+                        let x: Vec<f64> = hist.values[k].iter().map(|s| s[*comp]).collect();
+                        let dt = hist.t.get(1).map(|t1| t1 - hist.t[0]).unwrap_or(0.0);
+                        let f = crate::signal::dominant_frequency(&x, dt, 0.0, 0.5 / dt)
+                            .unwrap_or(f64::NAN);
+                        derived.push(("first_bending_hz".to_string(), f));
+                    }
+                }
+                if let Some(w) = &writer {
+                    let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
+                    let st = VariantStatus {
+                        state,
+                        message: message.clone(),
+                        t_fail,
+                        steps: stats.steps as u64,
+                        rejected_steps: stats.rejected_steps as u64,
+                        wall_s: wall,
+                    };
+                    let mut r = Ok(());
+                    for ti in 0..hist.t.len() {
+                        let vals: Vec<Vec<f64>> =
+                            hist.values.iter().map(|s| s[ti].clone()).collect();
+                        r = r.and_then(|_| g.write_samples(v, ti, &vals));
+                    }
+                    r = r.and_then(|_| g.set_status(v, &st));
+                    for (n, x) in &derived {
+                        r = r.and_then(|_| g.set_derived(n, v, *x));
+                    }
+                    // a flush rewrites the whole file: at most every few seconds
+                    let mut last = last_flush.lock().unwrap_or_else(|p| p.into_inner());
+                    if last.elapsed().as_secs_f64() > FLUSH_INTERVAL_S {
+                        r = r.and_then(|_| g.flush());
+                        *last = Instant::now();
+                    }
+                    if let Err(e) = r {
+                        record_err(e);
+                    }
+                }
+                let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress(d, nv);
+                Outcome {
+                    global_index: p.global_index[v],
+                    parameters: c.variants[p.global_index[v]].clone(),
+                    state,
+                    message,
+                    t_fail,
+                    steps: stats.steps,
+                    rejected_steps: stats.rejected_steps,
+                    newton_iterations: stats.newton_iterations,
+                    wall_s: wall,
+                    sensors: summaries,
+                    derived,
+                    history: keep_history.then_some(hist),
+                }
+            })
+            .collect()
+    });
+    if let Some(w) = writer {
+        let w = w.into_inner().unwrap_or_else(|p| p.into_inner());
+        let status = if stop.load(Ordering::Relaxed) {
+            "interrupted"
+        } else {
+            "complete"
+        };
+        w.finish(status)?;
+    }
+    if let Some(e) = write_err.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        return Err(e.into());
+    }
+    Ok(outcomes)
+}
+
+fn summarize(m: &Model, h: &dynamics::History) -> Vec<SensorSummary> {
+    m.sensors
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let nc = sensors::components(&s.kind).len();
+            let vals = h.values.get(k).map(|v| v.as_slice()).unwrap_or(&[]);
+            let fold = |f: fn(f64, f64) -> f64, init: f64| -> Vec<f64> {
+                (0..nc)
+                    .map(|c| vals.iter().map(|v| v[c]).fold(init, f))
+                    .collect()
+            };
+            SensorSummary {
+                min: fold(f64::min, f64::INFINITY),
+                max: fold(f64::max, f64::NEG_INFINITY),
+                last: vals.last().cloned().unwrap_or_else(|| vec![f64::NAN; nc]),
+            }
+        })
+        .collect()
+}

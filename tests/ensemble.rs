@@ -1,0 +1,222 @@
+//! Ensembles: bit-identical to single runs, failure isolation, interruption, and the
+//! sweep command's checks.
+
+use latdyn::ensemble::{self, Campaign, Range};
+use latdyn::output::VariantState;
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::atomic::AtomicBool;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn campaign(model: &str, variants: Vec<Vec<(String, f64)>>, threads: usize) -> Campaign {
+    Campaign {
+        model_path: root().join(model),
+        base: vec![],
+        variants,
+        threads,
+        output: None,
+        shard: None,
+        frequency_sensor: None,
+        command_line: "test".into(),
+    }
+}
+
+#[test]
+fn ensemble_sensors_are_bit_identical_to_running_each_variant_alone() {
+    let vs: Vec<Vec<(String, f64)>> = [1.0, 3.0, 7.0]
+        .iter()
+        .map(|w| vec![("omega".to_string(), *w), ("t_end".to_string(), 2.0)])
+        .collect();
+    let c = campaign("models/rotating_cantilever.toml", vs.clone(), 2);
+    let p = ensemble::prepare(&c).unwrap();
+    let out = ensemble::run(&c, &p, &AtomicBool::new(false), true, &|_, _| {}).unwrap();
+    for (o, v) in out.iter().zip(&vs) {
+        assert_eq!(o.state, VariantState::Completed);
+        let m = latdyn::model::load(&c.model_path, v).unwrap();
+        let (h, _, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
+        assert!(err.is_none());
+        let eh = o.history.as_ref().unwrap();
+        assert_eq!(eh.t, h.t);
+        // exact equality: same code path, no thread-count-dependent reductions
+        assert_eq!(eh.values, h.values, "variant {v:?}");
+    }
+}
+
+#[test]
+fn a_diverging_variant_fails_with_a_reason_and_the_others_complete() {
+    let vs: Vec<Vec<(String, f64)>> = [0.0, 60.0, 0.5]
+        .iter()
+        .map(|g| vec![("growth".to_string(), *g)])
+        .collect();
+    let dir = std::env::temp_dir().join(format!("latdyn-ens-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut c = campaign("tests/models/spinning_hub.toml", vs, 2);
+    c.output = Some(dir.join("diverge.h5"));
+    let p = ensemble::prepare(&c).unwrap();
+    let out = ensemble::run(&c, &p, &AtomicBool::new(false), false, &|_, _| {}).unwrap();
+    assert_eq!(out[0].state, VariantState::Completed);
+    assert_eq!(out[2].state, VariantState::Completed);
+    assert_eq!(out[1].state, VariantState::Failed, "{}", out[1].message);
+    assert!(out[1].message.contains("t ="), "{}", out[1].message);
+    eprintln!("diverging variant: {}", out[1].message);
+    let f = rust_hdf5::H5File::open(dir.join("diverge.h5")).unwrap();
+    assert_eq!(f.attr_string("status").unwrap(), "complete");
+    let state = f
+        .dataset("status/state")
+        .unwrap()
+        .read_raw::<i32>()
+        .unwrap();
+    assert_eq!(state, [2, 3, 2]);
+    let tip = f.dataset("sensors/tip").unwrap().read_raw::<f64>().unwrap();
+    let per_variant = tip.len() / 3;
+    assert!(tip[..per_variant].iter().all(|x| x.is_finite()));
+    assert!(tip[2 * per_variant..].iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn topology_change_and_bad_inputs_are_reported_before_any_work() {
+    let vs = vec![
+        vec![("elements".to_string(), 8.0)],
+        vec![("elements".to_string(), 16.0)],
+    ];
+    let c = campaign("models/cantilever.toml", vs, 1);
+    let err = ensemble::prepare(&c)
+        .err()
+        .expect("topology change must be refused");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("topology") && msg.contains("elements=16"),
+        "{msg}"
+    );
+
+    assert!(Range::parse("omega=0:1:0").is_err());
+    assert!(Range::parse("omega=0:1").is_err());
+    assert_eq!(
+        Range::parse("w=0:2*pi:3").unwrap().values()[2],
+        2.0 * std::f64::consts::PI
+    );
+
+    let bin = env!("CARGO_BIN_EXE_latdyn");
+    for args in [
+        vec!["sweep", "models/pendulum.toml", "--vary", "nope=0:1:3"],
+        vec!["sweep", "models/pendulum.toml", "--vary", "theta0=0:1:0"],
+        vec![
+            "sweep",
+            "models/pendulum.toml",
+            "--variants",
+            "/nonexistent/v.csv",
+        ],
+        vec![
+            "sweep",
+            "models/pendulum.toml",
+            "--vary",
+            "theta0=0.1:1:2",
+            "-o",
+            "/nonexistent/dir/x.h5",
+        ],
+    ] {
+        let out = Command::new(bin)
+            .args(&args)
+            .current_dir(root())
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.starts_with("error:"), "{args:?}: {err}");
+        assert!(out.stdout.is_empty());
+    }
+}
+
+#[test]
+fn sweep_json_summary_and_shards_keep_global_indices() {
+    let bin = env!("CARGO_BIN_EXE_latdyn");
+    let out = Command::new(bin)
+        .args([
+            "sweep",
+            "models/pendulum.toml",
+            "--vary",
+            "theta0=0.5:1.5:5",
+            "--set",
+            "t_end=0.2",
+            "--shard",
+            "2/2",
+            "--json",
+            "--frequency",
+            "angle.ry",
+        ])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let vs = v["variants"].as_array().unwrap();
+    // shard 2 of 2 holds the odd global indices 1, 3
+    let idx: Vec<u64> = vs.iter().map(|x| x["index"].as_u64().unwrap()).collect();
+    assert_eq!(idx, [1, 3]);
+    assert_eq!(vs[0]["parameters"]["theta0"], 0.75);
+    assert_eq!(vs[0]["status"], "completed");
+    assert!(vs[0]["sensors"]["angle"]["max"].is_array());
+    assert!(vs[0]["derived"]["first_bending_hz"].is_number());
+    assert_eq!(v["backend"], "cpu");
+}
+
+#[test]
+fn sigint_leaves_a_valid_file_marked_interrupted() {
+    let dir = std::env::temp_dir().join(format!("latdyn-int-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("interrupted.h5");
+    let bin = env!("CARGO_BIN_EXE_latdyn");
+    let mut child = Command::new(bin)
+        .args([
+            "sweep",
+            "models/spinup_beam.toml",
+            "--vary",
+            "ws=4:6:8",
+            "--threads",
+            "1",
+            "-o",
+        ])
+        .arg(&path)
+        .current_dir(root())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // the file exists as soon as the campaign starts; let at least one variant finish
+    std::thread::sleep(std::time::Duration::from_millis(4000));
+    let st = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let out = child.wait_with_output().unwrap();
+    assert_ne!(
+        out.status.code(),
+        Some(0),
+        "an interrupted sweep must not report success"
+    );
+    let f = rust_hdf5::H5File::open(&path).unwrap();
+    assert_eq!(f.attr_string("status").unwrap(), "interrupted");
+    let state = f
+        .dataset("status/state")
+        .unwrap()
+        .read_raw::<i32>()
+        .unwrap();
+    eprintln!("states after SIGINT: {state:?}");
+    assert!(
+        state.contains(&4),
+        "an in-flight variant is marked interrupted: {state:?}"
+    );
+    assert!(
+        state.iter().all(|s| *s != 1),
+        "no variant left 'running': {state:?}"
+    );
+}
