@@ -174,7 +174,7 @@ fn sigint_leaves_a_valid_file_marked_interrupted() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("interrupted.h5");
     let bin = env!("CARGO_BIN_EXE_latdyn");
-    let mut child = Command::new(bin)
+    let child = Command::new(bin)
         .args([
             "sweep",
             "models/spinup_beam.toml",
