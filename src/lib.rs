@@ -18,6 +18,7 @@ pub mod linalg;
 pub mod math;
 pub mod model;
 pub mod output;
+pub mod plot;
 pub mod sensors;
 pub mod signal;
 pub mod solver;

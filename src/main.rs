@@ -137,13 +137,56 @@ struct RunArgs {
     output: Option<PathBuf>,
 }
 
+/// `latdyn plot FILE.h5 (--sensor S... | --x S --y S | --campbell P --derived D) -o OUT`
 #[derive(Args)]
+#[command(group(clap::ArgGroup::new("kind").required(true).args(["sensor", "x", "campbell"])))]
 struct PlotArgs {
-    /// results file written by `run` or `sweep`
+    /// results file (HDF5) written by `run` or `sweep`
     input: PathBuf,
-    /// image file to write
-    #[arg(short, long, value_name = "PATH")]
-    output: Option<PathBuf>,
+    /// image file to write; the format follows the extension: .svg or .png
+    #[arg(short, long, value_name = "OUT.svg|png")]
+    output: PathBuf,
+    /// time histories of a sensor, one line per variant; all its components unless one
+    /// is named (repeatable)
+    #[arg(long, value_name = "NAME[.COMPONENT]")]
+    sensor: Vec<String>,
+    /// cross plot: this sensor component on the x axis (with --y)
+    #[arg(long, value_name = "NAME[.COMPONENT]", requires = "y")]
+    x: Option<String>,
+    /// cross plot: this sensor component on the y axis (with --x)
+    #[arg(long, value_name = "NAME[.COMPONENT]", requires = "x")]
+    y: Option<String>,
+    /// Campbell diagram against this parameter (rotor speed, rad/s); needs --derived
+    #[arg(long, value_name = "PARAM", requires = "derived")]
+    campbell: Option<String>,
+    /// Campbell diagram: the frequency (Hz) of each variant, /derived/NAME
+    #[arg(long, value_name = "NAME", requires = "campbell")]
+    derived: Option<String>,
+    /// Campbell diagram: frequency axis in rad/s (2π·f) or Hz
+    #[arg(long, default_value = "rad", value_parser = ["rad", "hz"], requires = "campbell")]
+    units: String,
+    /// Campbell diagram: Southwell curve sqrt(W0² + K·Ω²), W0 in the axis units
+    #[arg(
+        long,
+        value_name = "W0,K",
+        requires = "campbell",
+        allow_hyphen_values = true,
+        value_parser = latdyn::plot::parse_pair
+    )]
+    southwell: Option<(f64, f64)>,
+    /// Campbell diagram: rotor harmonics n·Ω drawn, n = 1..N
+    #[arg(long, value_name = "N", default_value_t = 6, requires = "campbell")]
+    harmonics: usize,
+    /// variants (row indices) to plot, e.g. 0,3,5; default all (at most 20 lines)
+    #[arg(long, value_name = "I,J,...", value_delimiter = ',')]
+    variants: Vec<usize>,
+    /// chart title (default: the model path stored in the file)
+    #[arg(long)]
+    title: Option<String>,
+    /// image size in pixels
+    #[arg(long, value_name = "WxH", default_value = "1000x640", value_parser = latdyn::plot::parse_size)]
+    size: (u32, u32),
+    /// machine-readable output on stdout (Campbell: the crossings)
     #[arg(long)]
     json: bool,
 }
@@ -156,6 +199,7 @@ fn main() -> ExitCode {
         Verb::Modes(a) => modes(a),
         Verb::Run(a) => run(a),
         Verb::Sweep(a) => sweep(a),
+        Verb::Plot(a) => plot(a),
         other => run_verb(other),
     };
     match result {
@@ -186,6 +230,67 @@ fn run_verb(verb: &Verb) -> anyhow::Result<()> {
         Verb::Check(_) | Verb::Plot(_) => {}
     }
     Err(anyhow!("verb {}: not available in this build", verb.name()))
+}
+
+/// Chart a results file: time histories, a cross plot or a Campbell diagram.
+fn plot(args: &PlotArgs) -> anyhow::Result<()> {
+    use latdyn::plot as lp;
+    let opts = lp::PlotOptions {
+        title: args.title.clone(),
+        size: args.size,
+        variants: (!args.variants.is_empty()).then(|| args.variants.clone()),
+    };
+    lp::ImageFormat::from_path(&args.output)?;
+    let c = lp::Campaign::open(&args.input)?;
+    let summary = if let Some(param) = &args.campbell {
+        let derived = args
+            .derived
+            .as_deref()
+            .ok_or_else(|| anyhow!("--campbell needs --derived NAME"))?;
+        let spec = lp::CampbellSpec {
+            parameter: param.clone(),
+            derived: derived.to_string(),
+            units: lp::FreqUnits::parse(&args.units)?,
+            southwell: args.southwell,
+            harmonics: args.harmonics,
+        };
+        let r = lp::plot_campbell(&c, &spec, &opts, &args.output)?;
+        for (n, om) in &r.crossings {
+            eprintln!("crossing: {n}Ω at {param} = {om:.6} rad/s");
+        }
+        if r.crossings.is_empty() {
+            eprintln!("no crossing with the harmonics 1..{}", args.harmonics);
+        }
+        if args.json {
+            let list: Vec<serde_json::Value> = r
+                .crossings
+                .iter()
+                .map(|(n, om)| serde_json::json!({"harmonic": n, "omega": om}))
+                .collect();
+            emit(&format!("{}\n", serde_json::json!({ "crossings": list })))?;
+        }
+        r.summary
+    } else if let (Some(x), Some(y)) = (&args.x, &args.y) {
+        lp::plot_phase(&c, x, y, &opts, &args.output)?
+    } else {
+        lp::plot_sensors(&c, &args.sensor, &opts, &args.output)?
+    };
+    for n in &summary.notes {
+        eprintln!("note: {n}");
+    }
+    if args.json && args.campbell.is_none() {
+        let v = serde_json::json!({
+            "output": args.output.display().to_string(),
+            "lines": summary.lines,
+        });
+        emit(&format!("{v}\n"))?;
+    }
+    eprintln!(
+        "plot: wrote {} ({} lines)",
+        args.output.display(),
+        summary.lines.len()
+    );
+    Ok(())
 }
 
 /// Write text to stdout; a closed pipe is an error, not a panic.
