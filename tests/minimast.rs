@@ -19,7 +19,11 @@ fn drive(t: f64) -> f64 {
     l0() * (tt - (2.0 * std::f64::consts::PI * tt).sin() / (2.0 * std::f64::consts::PI))
 }
 
-fn hist<'a>(m: &latdyn::model::Model, h: &'a latdyn::solver::dynamics::History, name: &str) -> &'a [Vec<f64>] {
+fn hist<'a>(
+    m: &latdyn::model::Model,
+    h: &'a latdyn::solver::dynamics::History,
+    name: &str,
+) -> &'a [Vec<f64>] {
     &h.values[m.sensor_index(name).expect("sensor")]
 }
 
@@ -78,11 +82,10 @@ fn full_deployment_reaches_l_and_turns_about_100_degrees() {
     let m = shipped("minimast_bay.toml", &[("t_end", 1.05)]);
     let (h, stats, err) = run(&m, |_, _| {});
     assert!(err.is_none(), "{err:?}");
-    let i = h
-        .t
-        .iter()
-        .position(|&t| (t - 1.0).abs() < 1e-9)
-        .expect("output at t = T");
+    let i =
+        h.t.iter()
+            .position(|&t| (t - 1.0).abs() < 1e-9)
+            .expect("output at t = T");
     let up = hist(&m, &h, "upper_z");
     let z = up[i][2] - up[0][2];
     let turn = up[i][5].to_degrees();
@@ -98,7 +101,11 @@ fn full_deployment_reaches_l_and_turns_about_100_degrees() {
     assert!((z - l0()).abs() < 1e-5, "Z(T) = {z}");
     assert!((turn - TURN_DEG).abs() < 3.0, "turn {turn} deg");
     // the mid-hinges lock straight (lock_angle = pi) by the end of the stroke
-    assert!((mid[i][0] - std::f64::consts::PI).abs() < 1e-9, "mid-hinge {}", mid[i][0]);
+    assert!(
+        (mid[i][0] - std::f64::consts::PI).abs() < 1e-9,
+        "mid-hinge {}",
+        mid[i][0]
+    );
     // the longeron is bent on the way (the deployed state is nearly unbent)
     assert!(peak > 10.0 && peak < 1e3, "peak bending {peak}");
     let last = &lm[i];
