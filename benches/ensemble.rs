@@ -10,8 +10,14 @@ use std::time::Instant;
 fn main() {
     let quick = std::env::args().any(|a| a == "quick");
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let counts: &[usize] = if quick { &[1, 10, 100] } else { &[1, 10, 100, 1000] };
-    println!("| variants | threads | wall [s] | steps | variant-steps/s | cost per variant / single |");
+    let counts: &[usize] = if quick {
+        &[1, 10, 100]
+    } else {
+        &[1, 10, 100, 1000]
+    };
+    println!(
+        "| variants | threads | wall [s] | steps | variant-steps/s | cost per variant / single |"
+    );
     println!("|---|---|---|---|---|---|");
     let mut single = None;
     for &n in counts {
