@@ -12,7 +12,7 @@
 //! to the M/(βh²) term; the velocity derivative of the chains' convective accelerations;
 //! the load stiffness of distributed gravity on beams.
 
-use crate::element::{self, ElemData, ElemState, Mat12, NDOF};
+use crate::element::{self, ElemData, Mat12, NDOF};
 use crate::joint::{self, Chain, State};
 use crate::math::*;
 use crate::model::Model;
@@ -115,17 +115,10 @@ impl Assembler {
     /// Every element within its small-deformation range (see
     /// [`element::deformation_in_range`]).
     pub fn deformation_in_range(&self, model: &Model, s: &State) -> bool {
-        model.elements.iter().zip(&self.elems).all(|(el, ed)| {
-            element::deformation_in_range(
-                ed,
-                &ElemState {
-                    u1: s.node_u[el.n1],
-                    r1: s.node_r[el.n1],
-                    u2: s.node_u[el.n2],
-                    r2: s.node_r[el.n2],
-                },
-            )
-        })
+        self.elems
+            .iter()
+            .enumerate()
+            .all(|(ie, ed)| element::deformation_in_range(ed, &joint::elem_state(model, s, ie)))
     }
 
     /// Scale a Newton increment so no angle changes by more than `max_angle` radians:
@@ -167,12 +160,7 @@ impl Assembler {
         for (ie, el) in model.elements.iter().enumerate() {
             let ed = &self.elems[ie];
             let (n1, n2) = (el.n1, el.n2);
-            let es = ElemState {
-                u1: s.node_u[n1],
-                r1: s.node_r[n1],
-                u2: s.node_u[n2],
-                r2: s.node_r[n2],
-            };
+            let es = joint::elem_state(model, s, ie);
             let ch = [
                 joint::node_chain(model, s, n1),
                 joint::node_chain(model, s, n2),

@@ -494,6 +494,18 @@ fn push_node_links(model: &Model, s: &State, n: usize, ch: &mut Chain) {
     }
 }
 
+/// The nodal state of element `e` (displacements and rotations of its two nodes).
+#[inline]
+pub fn elem_state(model: &Model, s: &State, e: usize) -> crate::element::ElemState {
+    let el = &model.elements[e];
+    crate::element::ElemState {
+        u1: s.node_u[el.n1],
+        r1: s.node_r[el.n1],
+        u2: s.node_u[el.n2],
+        r2: s.node_r[el.n2],
+    }
+}
+
 /// Current position of node n.
 #[inline]
 pub fn node_position(model: &Model, s: &State, n: usize) -> Vec3 {

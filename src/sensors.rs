@@ -1,7 +1,7 @@
 //! Sensors: named quantities sampled from a state (the last stage of a step).
 
 use crate::assembly::Assembler;
-use crate::element::{self, ElemState};
+use crate::element;
 use crate::joint::{self, State};
 use crate::math::*;
 use crate::model::{Model, SensorKind, SECTION_COMPONENTS};
@@ -80,15 +80,7 @@ pub fn sample(
     energies: &Energies,
     driver_forces: &[f64],
 ) -> Vec<f64> {
-    let elem_state = |e: usize| {
-        let el = &model.elements[e];
-        ElemState {
-            u1: s.node_u[el.n1],
-            r1: s.node_r[el.n1],
-            u2: s.node_u[el.n2],
-            r2: s.node_r[el.n2],
-        }
-    };
+    let elem_state = |e: usize| joint::elem_state(model, s, e);
     match kind {
         SensorKind::NodeDisplacement { node } => {
             let u = s.node_u[*node];

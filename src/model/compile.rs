@@ -193,6 +193,23 @@ impl Compiler<'_> {
         v.as_ref().map_or(Ok([0.0; 3]), |v| self.vec3(v, field))
     }
 
+    /// `x`, `y` or `z` as 0, 1, 2 (`what` says which axes, for the message).
+    fn axis_component(&self, c: &Spanned<String>, field: &str, what: &str) -> Result<usize> {
+        ["x", "y", "z"]
+            .iter()
+            .position(|x| x == c.get_ref())
+            .ok_or_else(|| {
+                self.err(
+                    c.span(),
+                    field,
+                    format!(
+                        "unknown component `{}` (one of x, y, z: {what})",
+                        c.get_ref()
+                    ),
+                )
+            })
+    }
+
     fn unit(&self, v: &Spanned<Vector>, field: &str) -> Result<Vec3> {
         let x = self.vec3(v, field)?;
         let n = norm(x);
@@ -1413,19 +1430,7 @@ impl Compiler<'_> {
                     )?;
                     let fc = format!("{f}.component");
                     let c = self.required(&s.component, span.clone(), &fc, &why)?;
-                    let axis = ["x", "y", "z"]
-                        .iter()
-                        .position(|x| x == c.get_ref())
-                        .ok_or_else(|| {
-                            self.err(
-                                c.span(),
-                                &fc,
-                                format!(
-                                    "unknown component `{}` (one of x, y, z: a body axis)",
-                                    c.get_ref()
-                                ),
-                            )
-                        })?;
+                    let axis = self.axis_component(c, &fc, "a body axis")?;
                     SensorKind::BodyFrameDisplacement { node, body, axis }
                 }
                 SensorType::Body => {
@@ -1560,19 +1565,7 @@ impl Compiler<'_> {
                     )?;
                     let fc = format!("{f}.component");
                     let c = self.required(&s.component, span.clone(), &fc, &why)?;
-                    let axis = ["x", "y", "z"]
-                        .iter()
-                        .position(|x| x == c.get_ref())
-                        .ok_or_else(|| {
-                            self.err(
-                                c.span(),
-                                &fc,
-                                format!(
-                                    "unknown component `{}` (one of x, y, z: a global axis)",
-                                    c.get_ref()
-                                ),
-                            )
-                        })?;
+                    let axis = self.axis_component(c, &fc, "a global axis")?;
                     SensorKind::BeamDisplacement {
                         nodes: beams[b].nodes.clone(),
                         axis,

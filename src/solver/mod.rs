@@ -29,18 +29,8 @@ pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsEr
     let strain: f64 = asm
         .elems
         .iter()
-        .zip(&model.elements)
-        .map(|(e, el)| {
-            crate::element::strain_energy(
-                e,
-                &crate::element::ElemState {
-                    u1: s.node_u[el.n1],
-                    r1: s.node_r[el.n1],
-                    u2: s.node_u[el.n2],
-                    r2: s.node_r[el.n2],
-                },
-            )
-        })
+        .enumerate()
+        .map(|(ie, e)| crate::element::strain_energy(e, &crate::joint::elem_state(model, &s, ie)))
         .sum();
     let en = Energies {
         kinetic: 0.0,
