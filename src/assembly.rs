@@ -57,6 +57,29 @@ pub struct Coeffs {
     pub cm: f64,
 }
 
+impl Coeffs {
+    /// Dynamics: full loads and inertia, Jacobian ck·K + cc·C + cm·M.
+    pub fn dynamic(ck: f64, cc: f64, cm: f64) -> Coeffs {
+        Coeffs {
+            load_factor: 1.0,
+            inertia: true,
+            ck,
+            cc,
+            cm,
+        }
+    }
+    /// Statics at a load factor: no inertia, Jacobian K.
+    pub fn statics(load_factor: f64) -> Coeffs {
+        Coeffs {
+            load_factor,
+            inertia: false,
+            ck: 1.0,
+            cc: 0.0,
+            cm: 0.0,
+        }
+    }
+}
+
 /// Immutable per-model data the assembly needs, built once.
 pub struct Assembler {
     pub elems: Vec<ElemData>,

@@ -119,13 +119,7 @@ impl<'m> Integrator<'m> {
 
     /// Consistent initial accelerations: M a₀ = −(forces at rest acceleration).
     fn initial_acceleration(&mut self) {
-        let c = Coeffs {
-            load_factor: 1.0,
-            inertia: true,
-            ck: 0.0,
-            cc: 0.0,
-            cm: 1.0,
-        };
+        let c = Coeffs::dynamic(0.0, 0.0, 1.0);
         joint::update_kinematics(self.model, &mut self.s);
         if self
             .sys
@@ -152,13 +146,7 @@ impl<'m> Integrator<'m> {
     }
 
     fn refresh_energies(&mut self) {
-        let c = Coeffs {
-            load_factor: 1.0,
-            inertia: true,
-            ck: 0.0,
-            cc: 0.0,
-            cm: 0.0,
-        };
+        let c = Coeffs::dynamic(0.0, 0.0, 0.0);
         if let Ok(info) = self.sys.evaluate(self.model, &self.asm, &self.s, c, false) {
             self.energies.kinetic = info.kinetic_energy;
             self.energies.strain = info.strain_energy;
@@ -198,13 +186,7 @@ impl<'m> Integrator<'m> {
         let cfac = (1.0 - p.alpha_f) / (1.0 - p.alpha_m);
         let beta_p = h * h * p.beta * cfac;
         let gamma_p = h * p.gamma * cfac;
-        let coeffs = Coeffs {
-            load_factor: 1.0,
-            inertia: true,
-            ck: beta_p,
-            cc: gamma_p,
-            cm: 1.0,
-        };
+        let coeffs = Coeffs::dynamic(beta_p, gamma_p, 1.0);
         // unknown: accelerations of the active dofs at t_{n+1}; predictor: a_n
         let mut acc = start.a.clone();
         for it in 0..model.solver.max_iter.max(1) {

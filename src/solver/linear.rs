@@ -36,13 +36,7 @@ impl NewtonSystem {
     pub fn new(model: &Model, asm: &Assembler, s: &State) -> Result<NewtonSystem, LinalgError> {
         let mut ps = PatternSink::default();
         let mut gen = vec![0.0; model.dofs.len()];
-        let all = Coeffs {
-            load_factor: 1.0,
-            inertia: true,
-            ck: 1.0,
-            cc: 1.0,
-            cm: 1.0,
-        };
+        let all = Coeffs::dynamic(1.0, 1.0, 1.0);
         asm.evaluate(model, s, all, &mut gen, Some(&mut ps));
         for i in 0..asm.n_eq {
             ps.entries.push((i, i));

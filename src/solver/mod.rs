@@ -40,14 +40,13 @@ pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsEr
     };
     // generalized forces at equilibrium: at driven dofs, what the drivers supply
     let mut gen = vec![0.0; model.dofs.len()];
-    let c = crate::assembly::Coeffs {
-        load_factor: 1.0,
-        inertia: false,
-        ck: 0.0,
-        cc: 0.0,
-        cm: 0.0,
-    };
-    asm.evaluate(model, &s, c, &mut gen, None);
+    asm.evaluate(
+        model,
+        &s,
+        crate::assembly::Coeffs::statics(1.0),
+        &mut gen,
+        None,
+    );
     let vals = model
         .sensors
         .iter()

@@ -31,13 +31,7 @@ pub fn matrices(model: &Model, s: &State) -> (Vec<f64>, Vec<f64>) {
     asm.evaluate(
         model,
         &s0,
-        Coeffs {
-            load_factor: 1.0,
-            inertia: false,
-            ck: 1.0,
-            cc: 0.0,
-            cm: 0.0,
-        },
+        Coeffs::statics(1.0),
         &mut gen,
         Some(&mut DenseSink { n, a: &mut k }),
     );
@@ -47,13 +41,7 @@ pub fn matrices(model: &Model, s: &State) -> (Vec<f64>, Vec<f64>) {
     asm.evaluate(
         model,
         &sm,
-        Coeffs {
-            load_factor: 1.0,
-            inertia: true,
-            ck: 0.0,
-            cc: 0.0,
-            cm: 1.0,
-        },
+        Coeffs::dynamic(0.0, 0.0, 1.0),
         &mut gen,
         Some(&mut DenseSink { n, a: &mut m }),
     );

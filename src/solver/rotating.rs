@@ -193,13 +193,7 @@ impl Frame<'_> {
 
     fn residual(&mut self, xi: &[f64], xid: &[f64], xidd: &[f64]) -> Vec<f64> {
         let s = self.state(xi, xid, xidd);
-        let c = Coeffs {
-            load_factor: 1.0,
-            inertia: true,
-            ck: 0.0,
-            cc: 0.0,
-            cm: 0.0,
-        };
+        let c = Coeffs::dynamic(0.0, 0.0, 0.0);
         self.asm.evaluate(self.model, &s, c, &mut self.gen, None);
         self.asm.gather(self.model, &s, &self.gen, &mut self.r);
         self.r.clone()
@@ -265,13 +259,7 @@ pub fn rotating_modes(model: &Model, spin: Spin) -> Result<RotatingModes, Linalg
         let r = fr.residual(&z, &z, &z);
         let scale_f = {
             let s = fr.state(&z, &z, &z);
-            let c = Coeffs {
-                load_factor: 1.0,
-                inertia: true,
-                ck: 0.0,
-                cc: 0.0,
-                cm: 0.0,
-            };
+            let c = Coeffs::dynamic(0.0, 0.0, 0.0);
             fr.asm.evaluate(model, &s, c, &mut fr.gen, None).force_scale
         };
         let res = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));

@@ -36,13 +36,7 @@ pub fn newton(
     s: &mut State,
     lambda: f64,
 ) -> Result<Option<usize>, StaticsError> {
-    let c = Coeffs {
-        load_factor: lambda,
-        inertia: false,
-        ck: 1.0,
-        cc: 0.0,
-        cm: 0.0,
-    };
+    let c = Coeffs::statics(lambda);
     let mut dx = vec![0.0; asm.n_eq];
     for it in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
@@ -96,19 +90,7 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
                 dl *= 0.5;
                 if dl < 1e-7 {
                     joint::update_kinematics(model, s);
-                    let _ = sys.evaluate(
-                        model,
-                        &asm,
-                        s,
-                        Coeffs {
-                            load_factor: target,
-                            inertia: false,
-                            ck: 1.0,
-                            cc: 0.0,
-                            cm: 0.0,
-                        },
-                        false,
-                    );
+                    let _ = sys.evaluate(model, &asm, s, Coeffs::statics(target), false);
                     let (worst, val) = worst_dof(model, &sys.r);
                     return Err(StaticsError::NoConvergence {
                         lambda,
