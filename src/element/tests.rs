@@ -62,6 +62,20 @@ fn random_case_x(rng: &mut Lcg, deform: f64) -> (ElemData, ElemState, Vec3) {
     (e, s, x1)
 }
 
+/// An undeformed random element turned rigidly by a large random rotation about node 1;
+/// returns the element, its state and the current node positions.
+fn rigidly_rotated_case(rng: &mut Lcg) -> (ElemData, ElemState, Vec3, Vec3) {
+    let (e, _, x10) = random_case_x(rng, 0.0);
+    let q = rot_exp(rng.vec(2.0));
+    let s = ElemState {
+        u1: [0.0; 3],
+        r1: q,
+        u2: sub(mat_vec(&q, e.chord0), e.chord0),
+        r2: q,
+    };
+    (e, s, x10, add(x10, mat_vec(&q, e.chord0)))
+}
+
 /// State perturbed by h along element dof k (spins applied multiplicatively).
 fn perturbed(s: &ElemState, k: usize, h: f64) -> ElemState {
     let mut p = *s;
@@ -241,17 +255,7 @@ fn exact_rigid_inertia(e: &ElemData, s: &ElemState, x1: Vec3, x2: Vec3) -> (f64,
 fn mass_matrix_reproduces_exact_mass_first_and_second_moments_of_a_rigid_element() {
     let mut rng = Lcg(13);
     for _ in 0..30 {
-        let (e, _, x10) = random_case_x(&mut rng, 0.0);
-        let q = rot_exp(rng.vec(2.0));
-        // rotated rigidly about node 1, which stays at x10
-        let s = ElemState {
-            u1: [0.0; 3],
-            r1: q,
-            u2: sub(mat_vec(&q, e.chord0), e.chord0),
-            r2: q,
-        };
-        let x1 = x10;
-        let x2 = add(x10, mat_vec(&q, e.chord0));
+        let (e, s, x1, x2) = rigidly_rotated_case(&mut rng);
         let m = mass_matrix(&e, &s);
         let (mass, s1, j) = exact_rigid_inertia(&e, &s, x1, x2);
         for _ in 0..5 {
@@ -309,17 +313,7 @@ fn inertial_force_of_steady_rigid_rotation_is_the_exact_centripetal_and_gyroscop
     // δd·(ω × (ω × S1)) + δω·(ω × Jω).
     let mut rng = Lcg(19);
     for _ in 0..20 {
-        let (e, _, x10) = random_case_x(&mut rng, 0.0);
-        let q = rot_exp(rng.vec(2.0));
-        // rotated rigidly about node 1, which stays at x10
-        let s = ElemState {
-            u1: [0.0; 3],
-            r1: q,
-            u2: sub(mat_vec(&q, e.chord0), e.chord0),
-            r2: q,
-        };
-        let x1 = x10;
-        let x2 = add(x10, mat_vec(&q, e.chord0));
+        let (e, s, x1, x2) = rigidly_rotated_case(&mut rng);
         let w = rng.vec(3.0);
         let v = rigid_velocity(x1, x2, [0.0; 3], w);
         let acc_node = |x: Vec3| cross(w, cross(w, x));
