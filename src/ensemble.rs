@@ -13,17 +13,22 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::assembly::Assembler;
+use crate::joint::State;
+use crate::linalg::SparseLuSymbolic;
 use crate::model::{self, Model};
 use crate::output::{
     CampaignMeta, CampaignWriter, OutputError, SensorMeta, VariantState, VariantStatus,
 };
 use crate::sensors;
+use crate::solver::dynamics::StageTimes;
 use crate::solver::dynamics::{self, DynamicsError};
+use crate::solver::linear::NewtonSystem;
 
 #[derive(Debug, thiserror::Error)]
 pub enum EnsembleError {
@@ -184,6 +189,8 @@ pub struct Outcome {
     pub rejected_steps: usize,
     pub newton_iterations: usize,
     pub wall_s: f64,
+    /// wall time per stage (element, assembly, factorization, output incl. file writes)
+    pub times: StageTimes,
     pub sensors: Vec<SensorSummary>,
     pub derived: Vec<(String, f64)>,
     /// full histories, kept only when asked for (single runs)
@@ -196,6 +203,8 @@ pub struct Prepared {
     pub global_index: Vec<usize>,
     pub parameter_names: Vec<String>,
     pub time: Vec<f64>,
+    /// one symbolic LU analysis shared by all variants (they share the pattern)
+    pub symbolic: Option<Arc<SparseLuSymbolic>>,
 }
 
 /// Compile every variant (of this shard) and check they share topology and time grid.
@@ -245,11 +254,19 @@ pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
             }
         }
     }
+    let symbolic = models.first().and_then(|m| {
+        let asm = Assembler::new(m);
+        let st = State::new(m);
+        NewtonSystem::new(m, &asm, &st)
+            .ok()
+            .map(|sys| Arc::clone(sys.symbolic()))
+    });
     Ok(Prepared {
         models,
         global_index,
         parameter_names,
         time,
+        symbolic,
     })
 }
 
@@ -363,10 +380,10 @@ pub fn run(
                 // samples go to the file when the variant ends (completed, failed or
                 // interrupted alike), so workers do not contend for the writer per sample
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    dynamics::run_until(m, Some(stop), |_, _| {})
+                    dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {})
                 }));
                 let wall = t0.elapsed().as_secs_f64();
-                let (hist, stats, err) = match result {
+                let (hist, mut stats, err) = match result {
                     Ok(r) => r,
                     Err(panic) => {
                         let msg = panic
@@ -405,6 +422,7 @@ pub fn run(
                         derived.push(("first_bending_hz".to_string(), f));
                     }
                 }
+                let t_out = Instant::now();
                 if let Some(w) = &writer {
                     let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
                     let st = VariantStatus {
@@ -435,6 +453,7 @@ pub fn run(
                         record_err(e);
                     }
                 }
+                stats.times.output_s += t_out.elapsed().as_secs_f64();
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress(d, nv);
                 Outcome {
@@ -447,6 +466,7 @@ pub fn run(
                     rejected_steps: stats.rejected_steps,
                     newton_iterations: stats.newton_iterations,
                     wall_s: wall,
+                    times: stats.times,
                     sensors: summaries,
                     derived,
                     history: keep_history.then_some(hist),

@@ -18,7 +18,7 @@ pub const MAXCHAIN: usize = 12;
 
 /// Mutable per-run state: coordinates, their rates and accelerations, plus the node and
 /// body configurations the kinematics stage derives from them.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct State {
     pub t: f64,
     /// scalar coordinate values (spin components: unused, the rotation is in `spin`)
@@ -36,6 +36,38 @@ pub struct State {
     /// node displacement from the reference position, and rotation from the reference
     pub node_u: Vec<Vec3>,
     pub node_r: Vec<Mat3>,
+}
+
+impl Clone for State {
+    fn clone(&self) -> State {
+        State {
+            t: self.t,
+            q: self.q.clone(),
+            v: self.v.clone(),
+            a: self.a.clone(),
+            spin: self.spin.clone(),
+            locked: self.locked.clone(),
+            body_x: self.body_x.clone(),
+            body_r: self.body_r.clone(),
+            node_u: self.node_u.clone(),
+            node_r: self.node_r.clone(),
+        }
+    }
+
+    /// Reuses the buffers: the integrator copies states every Newton iteration and must
+    /// not allocate there.
+    fn clone_from(&mut self, o: &State) {
+        self.t = o.t;
+        self.q.clone_from(&o.q);
+        self.v.clone_from(&o.v);
+        self.a.clone_from(&o.a);
+        self.spin.clone_from(&o.spin);
+        self.locked.clone_from(&o.locked);
+        self.body_x.clone_from(&o.body_x);
+        self.body_r.clone_from(&o.body_r);
+        self.node_u.clone_from(&o.node_u);
+        self.node_r.clone_from(&o.node_r);
+    }
 }
 
 impl State {
@@ -185,65 +217,48 @@ pub fn update_kinematics(model: &Model, s: &mut State) {
         s.body_x[b] = x;
         s.body_r[b] = r;
     }
-    // masters are resolved before their slaves (compile guarantees no cycles)
-    let mut done = vec![false; model.x0.len()];
-    let mut remaining = model.x0.len();
-    while remaining > 0 {
-        let before = remaining;
-        for n in 0..model.x0.len() {
-            if done[n] {
-                continue;
+    // masters come before their slaves in `kin_order`
+    for &n in &model.kin_order {
+        let (u, r) = match &model.node_kin[n] {
+            NodeKin::Free { trans, spin } => {
+                let mut u = [0.0; 3];
+                for k in 0..3 {
+                    if let Some(d) = trans[k] {
+                        u[k] = s.q[d];
+                    }
+                }
+                (u, spin.map(|sp| s.spin[sp]).unwrap_or(I3))
             }
-            let (u, r) = match &model.node_kin[n] {
-                NodeKin::Free { trans, spin } => {
-                    let mut u = [0.0; 3];
-                    for k in 0..3 {
-                        if let Some(d) = trans[k] {
-                            u[k] = s.q[d];
-                        }
-                    }
-                    (u, spin.map(|sp| s.spin[sp]).unwrap_or(I3))
+            NodeKin::OnBody {
+                body,
+                s: sb,
+                hinge,
+                r_rel,
+            } => {
+                let (xb, rb) = match body {
+                    Some(b) => (s.body_x[*b], s.body_r[*b]),
+                    None => ([0.0; 3], I3),
+                };
+                let x = add(xb, mat_vec(&rb, *sb));
+                let mut r = rb;
+                if let Some(h) = hinge {
+                    let hg = &model.hinges[*h];
+                    r = mat_mul(&r, &rot_axis(hg.axis_local, s.q[hg.dof]));
                 }
-                NodeKin::OnBody {
-                    body,
-                    s: sb,
-                    hinge,
-                    r_rel,
-                } => {
-                    let (xb, rb) = match body {
-                        Some(b) => (s.body_x[*b], s.body_r[*b]),
-                        None => ([0.0; 3], I3),
-                    };
-                    let x = add(xb, mat_vec(&rb, *sb));
-                    let mut r = rb;
-                    if let Some(h) = hinge {
-                        let hg = &model.hinges[*h];
-                        r = mat_mul(&r, &rot_axis(hg.axis_local, s.q[hg.dof]));
-                    }
-                    (sub(x, model.x0[n]), mat_mul(&r, r_rel))
-                }
-                NodeKin::OnNode {
-                    master,
-                    hinge,
-                    r_rel,
-                } => {
-                    if !done[*master] {
-                        continue;
-                    }
-                    let hg = &model.hinges[*hinge];
-                    let r = mat_mul(&s.node_r[*master], &rot_axis(hg.axis_local, s.q[hg.dof]));
-                    (s.node_u[*master], mat_mul(&r, r_rel))
-                }
-            };
-            s.node_u[n] = u;
-            s.node_r[n] = r;
-            done[n] = true;
-            remaining -= 1;
-        }
-        assert!(
-            remaining < before,
-            "cyclic node chain (compile must reject)"
-        );
+                (sub(x, model.x0[n]), mat_mul(&r, r_rel))
+            }
+            NodeKin::OnNode {
+                master,
+                hinge,
+                r_rel,
+            } => {
+                let hg = &model.hinges[*hinge];
+                let r = mat_mul(&s.node_r[*master], &rot_axis(hg.axis_local, s.q[hg.dof]));
+                (s.node_u[*master], mat_mul(&r, r_rel))
+            }
+        };
+        s.node_u[n] = u;
+        s.node_r[n] = r;
     }
 }
 

@@ -373,6 +373,13 @@ impl SparseLuSymbolic {
         self.structure.row_idx().len()
     }
 
+    /// Whether this analysis belongs to `pattern` (same dimension and nonzero structure).
+    pub fn analyses(&self, pattern: &SparsePattern) -> bool {
+        self.n == pattern.n
+            && self.structure.col_ptr() == pattern.structure.col_ptr()
+            && self.structure.row_idx() == pattern.structure.row_idx()
+    }
+
     /// The kernel requested at analysis time.
     pub fn variant(&self) -> LuVariant {
         self.variant

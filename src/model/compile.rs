@@ -532,6 +532,9 @@ impl Compiler<'_> {
             ),
         };
 
+        // hinge chains between nodes are checked acyclic where they are built
+        let kin_order = super::types::kinematic_order(&node_kin)
+            .expect("node hinge chains are acyclic after compilation");
         Ok(Model {
             name,
             path: self.file.to_string(),
@@ -540,6 +543,7 @@ impl Compiler<'_> {
             node_names,
             x0,
             node_kin,
+            kin_order,
             elements,
             beams,
             bodies: model_bodies,

@@ -138,6 +138,30 @@ pub enum NodeKin {
     },
 }
 
+/// Node order with masters before slaves; `None` if the `OnNode` links form a cycle.
+pub fn kinematic_order(node_kin: &[NodeKin]) -> Option<Vec<usize>> {
+    let n = node_kin.len();
+    let mut done = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    while order.len() < n {
+        let before = order.len();
+        for i in 0..n {
+            let ready = match &node_kin[i] {
+                NodeKin::OnNode { master, .. } => done[*master],
+                _ => true,
+            };
+            if !done[i] && ready {
+                done[i] = true;
+                order.push(i);
+            }
+        }
+        if order.len() == before {
+            return None;
+        }
+    }
+    Some(order)
+}
+
 /// A revolute hinge: one angle dof about an axis fixed in the parent frame.
 #[derive(Clone, Debug)]
 pub struct Hinge {
@@ -261,6 +285,9 @@ pub struct Model {
     /// initial (reference) node positions
     pub x0: Vec<Vec3>,
     pub node_kin: Vec<NodeKin>,
+    /// nodes in an order where every `OnNode` master precedes its slaves, so the
+    /// kinematics stage resolves them in one allocation-free pass
+    pub kin_order: Vec<usize>,
     pub elements: Vec<Element>,
     pub beams: Vec<Beam>,
     pub bodies: Vec<Body>,

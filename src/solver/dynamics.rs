@@ -7,12 +7,15 @@
 //! sparse LU every iteration on a pattern analysed once. A step whose Newton iteration
 //! fails or produces a non-finite value is halved and retried down to `dt_min`.
 
+pub use super::linear::StageTimes;
 use super::linear::{norm_inf, NewtonSystem};
 use super::statics::worst_dof;
 use crate::assembly::{Assembler, Coeffs};
 use crate::joint::{self, State};
+use crate::linalg::SparseLuSymbolic;
 use crate::model::Model;
 use crate::sensors::{self, Energies};
+use std::sync::Arc;
 
 #[derive(Debug, thiserror::Error)]
 pub enum DynamicsError {
@@ -77,6 +80,7 @@ pub struct RunStats {
     pub steps: usize,
     pub rejected_steps: usize,
     pub newton_iterations: usize,
+    pub times: StageTimes,
 }
 
 /// One transient simulation from the model's initial state over [0, t_end].
@@ -93,20 +97,44 @@ pub struct Integrator<'m> {
     pub energies: Energies,
     driver_power: f64,
     dx: Vec<f64>,
+    // scratch reused by every step, so the time loop does not allocate
+    start: State,
+    trial: State,
+    aux0: Vec<f64>,
+    acc: Vec<f64>,
+    incr: Vec<f64>,
+    prev_q: Vec<f64>,
 }
 
 impl<'m> Integrator<'m> {
     pub fn new(model: &'m Model) -> Result<Integrator<'m>, DynamicsError> {
+        Self::with_symbolic(model, None)
+    }
+
+    /// As [`Integrator::new`], reusing a symbolic factorization analysed for the same
+    /// sparsity pattern (an ensemble analyses it once for all variants); a symbolic
+    /// factorization of another pattern is ignored.
+    pub fn with_symbolic(
+        model: &'m Model,
+        symbolic: Option<&Arc<SparseLuSymbolic>>,
+    ) -> Result<Integrator<'m>, DynamicsError> {
         let s = State::new(model);
         let asm = Assembler::new(model);
-        let sys = NewtonSystem::new(model, &asm, &s)?;
+        let sys = NewtonSystem::with_symbolic(model, &asm, &s, symbolic)?;
+        let nd = model.dofs.len();
         let mut it = Integrator {
             model,
             dx: vec![0.0; asm.n_eq],
+            incr: vec![0.0; asm.n_eq],
+            start: s.clone(),
+            trial: s.clone(),
+            aux0: vec![0.0; nd],
+            acc: vec![0.0; nd],
+            prev_q: vec![0.0; nd],
             asm,
             sys,
             s,
-            aux: vec![0.0; model.dofs.len()],
+            aux: vec![0.0; nd],
             p: AlphaParams::new(model.solver.rho_inf),
             h: model.solver.dt,
             stats: RunStats::default(),
@@ -180,20 +208,28 @@ impl<'m> Integrator<'m> {
     fn try_step(&mut self, h: f64) -> Result<Option<usize>, DynamicsError> {
         let model = self.model;
         let p = self.p;
-        let start = self.s.clone();
-        let aux0 = self.aux.clone();
+        self.start.clone_from(&self.s);
+        self.aux0.clone_from(&self.aux);
+        let Integrator {
+            start,
+            trial: s,
+            aux0,
+            acc,
+            incr,
+            ..
+        } = self;
         let t1 = start.t + h;
         let cfac = (1.0 - p.alpha_f) / (1.0 - p.alpha_m);
         let beta_p = h * h * p.beta * cfac;
         let gamma_p = h * p.gamma * cfac;
         let coeffs = Coeffs::dynamic(beta_p, gamma_p, 1.0);
         // unknown: accelerations of the active dofs at t_{n+1}; predictor: a_n
-        let mut acc = start.a.clone();
+        acc.clone_from(&start.a);
         for it in 0..model.solver.max_iter.max(1) {
             // rebuild the state at t_{n+1} from the step start and the current accelerations
-            let mut s = start.clone();
-            joint::apply_drivers(model, &mut s, t1);
-            let mut incr = vec![0.0; self.asm.n_eq];
+            s.clone_from(start);
+            joint::apply_drivers(model, s, t1);
+            incr.iter_mut().for_each(|x| *x = 0.0);
             for (d, dof) in model.dofs.iter().enumerate() {
                 let Some(e) = dof.eq else { continue };
                 if !start.is_active(model, d) {
@@ -210,9 +246,9 @@ impl<'m> Integrator<'m> {
                 incr[e] =
                     h * start.v[d] + h * h * (0.5 - p.beta) * aux0[d] + h * h * p.beta * aux_new;
             }
-            joint::apply_increment(model, &mut s, &incr);
-            joint::update_kinematics(model, &mut s);
-            let info = match self.sys.evaluate(model, &self.asm, &s, coeffs, true) {
+            joint::apply_increment(model, s, incr);
+            joint::update_kinematics(model, s);
+            let info = match self.sys.evaluate(model, &self.asm, s, coeffs, true) {
                 Ok(i) => i,
                 Err(_) => return Ok(None),
             };
@@ -221,22 +257,20 @@ impl<'m> Integrator<'m> {
                 return Ok(None);
             }
             if res <= model.solver.tol * info.force_scale.max(f64::MIN_POSITIVE) || res == 0.0 {
-                if !self.asm.deformation_in_range(model, &s) {
+                if !self.asm.deformation_in_range(model, s) {
                     return Ok(None);
                 }
-                // converged: commit
-                let mut aux_new = aux0.clone();
+                // converged: commit (the auxiliary acceleration is updated in place from
+                // the step-start copy in aux0)
                 for (d, dof) in model.dofs.iter().enumerate() {
-                    if dof.eq.is_some() && start.is_active(model, d) {
-                        aux_new[d] = ((1.0 - p.alpha_f) * s.a[d] + p.alpha_f * start.a[d]
-                            - p.alpha_m * aux0[d])
-                            / (1.0 - p.alpha_m);
+                    self.aux[d] = if dof.eq.is_some() && start.is_active(model, d) {
+                        ((1.0 - p.alpha_f) * s.a[d] + p.alpha_f * start.a[d] - p.alpha_m * aux0[d])
+                            / (1.0 - p.alpha_m)
                     } else {
-                        aux_new[d] = s.a[d];
-                    }
+                        s.a[d]
+                    };
                 }
-                self.s = s;
-                self.aux = aux_new;
+                std::mem::swap(&mut self.s, s);
                 self.energies.kinetic = info.kinetic_energy;
                 self.energies.strain = info.strain_energy;
                 self.energies.gravity = info.gravity_energy;
@@ -258,7 +292,8 @@ impl<'m> Integrator<'m> {
     }
 
     /// Lock hinges whose lock time has come or whose angle has reached the lock angle.
-    fn check_locks(&mut self, prev_q: &[f64]) {
+    fn check_locks(&mut self) {
+        let prev_q = &self.prev_q;
         for (ih, h) in self.model.hinges.iter().enumerate() {
             if self.s.locked[ih] {
                 continue;
@@ -288,12 +323,12 @@ impl<'m> Integrator<'m> {
         let dt_nominal = self.model.solver.dt;
         while self.s.t < t_target - 1e-12 * t_target.abs().max(1.0) {
             let h = self.h.min(t_target - self.s.t);
-            let prev_q = self.s.q.clone();
+            self.prev_q.clone_from(&self.s.q);
             match self.try_step(h)? {
                 Some(iters) => {
                     self.stats.steps += 1;
                     self.stats.newton_iterations += iters;
-                    self.check_locks(&prev_q);
+                    self.check_locks();
                     // recover the nominal step after easy steps
                     if iters <= 4 && self.h < dt_nominal {
                         self.h = (self.h * 2.0).min(dt_nominal);
@@ -317,6 +352,13 @@ impl<'m> Integrator<'m> {
         // land on the output time exactly (the step sums carry round-off)
         self.s.t = t_target;
         Ok(())
+    }
+
+    /// Counters and stage times so far.
+    pub fn run_stats(&self) -> RunStats {
+        let mut st = self.stats.clone();
+        st.times.add(&self.sys.times);
+        st
     }
 
     /// Sensor values now.
@@ -359,39 +401,52 @@ pub fn run(
 pub fn run_until(
     model: &Model,
     stop: Option<&std::sync::atomic::AtomicBool>,
+    on_sample: impl FnMut(f64, &[Vec<f64>]),
+) -> (History, RunStats, Option<DynamicsError>) {
+    run_with(model, stop, None, on_sample)
+}
+
+/// As [`run_until`], reusing a symbolic factorization shared by an ensemble.
+pub fn run_with(
+    model: &Model,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+    symbolic: Option<&Arc<SparseLuSymbolic>>,
     mut on_sample: impl FnMut(f64, &[Vec<f64>]),
 ) -> (History, RunStats, Option<DynamicsError>) {
     let mut hist = History {
         t: Vec::new(),
         values: vec![Vec::new(); model.sensors.len()],
     };
-    let mut integ = match Integrator::new(model) {
+    let mut integ = match Integrator::with_symbolic(model, symbolic) {
         Ok(i) => i,
         Err(e) => return (hist, RunStats::default(), Some(e)),
     };
+    let mut output_s = 0.0;
     let mut record = |integ: &Integrator, hist: &mut History| {
+        let t0 = std::time::Instant::now();
         let vals = integ.sample();
         on_sample(integ.s.t, &vals);
         hist.t.push(integ.s.t);
         for (k, v) in vals.into_iter().enumerate() {
             hist.values[k].push(v);
         }
+        output_s += t0.elapsed().as_secs_f64();
     };
+    let mut failure = None;
     for (i, t) in output_times(model).into_iter().enumerate() {
         if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) {
-            let t = integ.s.t;
-            return (
-                hist,
-                integ.stats.clone(),
-                Some(DynamicsError::Interrupted { t }),
-            );
+            failure = Some(DynamicsError::Interrupted { t: integ.s.t });
+            break;
         }
         if i > 0 {
             if let Err(e) = integ.advance_to(t) {
-                return (hist, integ.stats.clone(), Some(e));
+                failure = Some(e);
+                break;
             }
         }
         record(&integ, &mut hist);
     }
-    (hist, integ.stats.clone(), None)
+    let mut stats = integ.run_stats();
+    stats.times.output_s += output_s;
+    (hist, stats, failure)
 }
