@@ -13,7 +13,7 @@
 # long 8 rad/s run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo build --release --quiet
+[[ "${NOBUILD:-0}" == 1 ]] || cargo build --release --quiet
 L=target/release/latdyn
 OUT=${OUT:-target/section5}
 FIG=docs/figures
