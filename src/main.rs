@@ -88,6 +88,11 @@ struct ModesArgs {
     /// include mode shapes (by node: displacement and rotation) in the JSON output
     #[arg(long)]
     shapes: bool,
+    /// rotating models: modes at each value NAME=START:STOP:COUNT (e.g. omega=1:9:33),
+    /// followed across the values by their shapes (MAC), so crossing branches keep
+    /// their identity
+    #[arg(long, value_name = "NAME=START:STOP:COUNT", value_parser = latdyn::ensemble::Range::parse)]
+    vary: Option<latdyn::ensemble::Range>,
 }
 
 #[derive(Args)]
@@ -174,6 +179,10 @@ struct PlotArgs {
         value_parser = latdyn::plot::parse_pair
     )]
     southwell: Option<(f64, f64)>,
+    /// Campbell diagram: eigenvalue branches from `latdyn modes MODEL --vary omega=A:B:N
+    /// --json > FILE.json`, drawn beside the data
+    #[arg(long, value_name = "FILE.json", requires = "campbell")]
+    modes: Option<PathBuf>,
     /// Campbell diagram: rotor harmonics n·Ω drawn, n = 1..N
     #[arg(long, value_name = "N", default_value_t = 6, requires = "campbell")]
     harmonics: usize,
@@ -253,6 +262,10 @@ fn plot(args: &PlotArgs) -> anyhow::Result<()> {
             units: lp::FreqUnits::parse(&args.units)?,
             southwell: args.southwell,
             harmonics: args.harmonics,
+            branches: match &args.modes {
+                Some(p) => lp::read_branches(p)?,
+                None => Vec::new(),
+            },
         };
         let r = lp::plot_campbell(&c, &spec, &opts, &args.output)?;
         for (n, om) in &r.crossings {
@@ -261,13 +274,24 @@ fn plot(args: &PlotArgs) -> anyhow::Result<()> {
         if r.crossings.is_empty() {
             eprintln!("no crossing with the harmonics 1..{}", args.harmonics);
         }
+        for (b, n, om) in &r.branch_crossings {
+            eprintln!("eigenvalue branch {b} crosses {n}Ω at {param} = {om:.6} rad/s");
+        }
         if args.json {
             let list: Vec<serde_json::Value> = r
                 .crossings
                 .iter()
                 .map(|(n, om)| serde_json::json!({"harmonic": n, "omega": om}))
                 .collect();
-            emit(&format!("{}\n", serde_json::json!({ "crossings": list })))?;
+            let mut v = serde_json::json!({ "crossings": list });
+            if args.modes.is_some() {
+                v["branch_crossings"] = r
+                    .branch_crossings
+                    .iter()
+                    .map(|(b, n, om)| serde_json::json!({"branch": b, "harmonic": n, "omega": om}))
+                    .collect();
+            }
+            emit(&format!("{v}\n"))?;
         }
         r.summary
     } else if let (Some(x), Some(y)) = (&args.x, &args.y) {
@@ -343,6 +367,9 @@ fn statics(args: &ModelArgs) -> anyhow::Result<()> {
 }
 
 fn modes(args: &ModesArgs) -> anyhow::Result<()> {
+    if let Some(range) = &args.vary {
+        return modes_vary(args, range);
+    }
     let m = args.model.load()?;
     if let Some(spin) = latdyn::solver::rotating::find_spin(&m) {
         return rotating_modes(args, &m, spin);
@@ -430,6 +457,110 @@ fn rotating_modes(
         );
         for (k, x) in f.iter().enumerate() {
             s += &format!("  {:>3}  {:>14.6} Hz\n", k + 1, x);
+        }
+        emit(&s)
+    }
+}
+
+/// `modes --vary`: rotating-frame modes at each value of one parameter, tracked into
+/// branches by MAC against the previous value's shapes.
+fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> anyhow::Result<()> {
+    use latdyn::solver::rotating;
+    if args.count == 0 {
+        return Err(anyhow!("--count must be at least 1"));
+    }
+    let values = range.values();
+    // a few spare shapes per value: a branch whose mode has moved past others must
+    // still find it among the candidates
+    let want = args.count + 4;
+    let mut steps = Vec::with_capacity(values.len());
+    let mut free_dofs = 0;
+    for &v in &values {
+        let mut set = args.model.set.clone();
+        set.retain(|(n, _)| *n != range.name);
+        set.push((range.name.clone(), v));
+        let m = model::load(&args.model.model, &set)?;
+        if m.param(&range.name).is_none() {
+            return Err(anyhow!(
+                "--vary {}: the model has no parameter `{}`",
+                range.name,
+                range.name
+            ));
+        }
+        let spin = rotating::find_spin(&m).ok_or_else(|| {
+            anyhow!(
+                "--vary {}={v}: no body of {} turns at a constant nonzero speed; --vary \
+                 follows rotating-frame modes, so every value must give a spinning hub \
+                 (start a speed range just above 0, e.g. 1e-6)",
+                range.name,
+                m.path
+            )
+        })?;
+        if free_dofs != 0 && free_dofs != m.n_eq {
+            return Err(anyhow!(
+                "--vary {}={v}: the number of free coordinates changes ({} → {}); modes \
+                 can only be followed across values of the same topology",
+                range.name,
+                free_dofs,
+                m.n_eq
+            ));
+        }
+        free_dofs = m.n_eq;
+        let rm = rotating::rotating_modes_with_shapes(&m, spin, want)
+            .with_context(|| format!("{}: rotating-frame modes at {}={v}", m.path, range.name))?;
+        steps.push(rm);
+    }
+    let branches = rotating::track_branches(&steps, args.count);
+    let speeds: Vec<f64> = steps.iter().map(|s| s.omega).collect();
+    if args.model.json {
+        let list: Vec<serde_json::Value> = branches
+            .iter()
+            .enumerate()
+            .map(|(k, b)| {
+                serde_json::json!({
+                    "branch": k + 1,
+                    "frequencies_hz": b.frequencies_hz.iter().map(|x| x.is_finite().then_some(*x)).collect::<Vec<_>>(),
+                    "damping_ratios": b.damping.iter().map(|x| x.is_finite().then_some(*x)).collect::<Vec<_>>(),
+                    "mac": b.mac,
+                })
+            })
+            .collect();
+        let sorted: Vec<Vec<f64>> = steps
+            .iter()
+            .map(|s| s.frequencies_hz[..args.count.min(s.frequencies_hz.len())].to_vec())
+            .collect();
+        let v = serde_json::json!({
+            "about": "steady_rotation",
+            "parameter": range.name,
+            "values": values,
+            "omega_rad_s": speeds,
+            "branches": list,
+            "sorted_frequencies_hz": sorted,
+            "free_dofs": free_dofs,
+        });
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "rotating-frame modes of {} followed by shape (MAC) over {} = {}..{} ({} values)\n",
+            args.model.model.display(),
+            range.name,
+            range.start,
+            range.stop,
+            values.len()
+        );
+        s += &format!("  {:>12}", range.name);
+        for k in 0..branches.len() {
+            s += &format!("  {:>12}", format!("branch {} Hz", k + 1));
+        }
+        s += "  min MAC\n";
+        for (i, v) in values.iter().enumerate() {
+            s += &format!("  {v:>12.6}");
+            let mut worst = 1.0f64;
+            for b in &branches {
+                s += &format!("  {:>12.6}", b.frequencies_hz[i]);
+                worst = worst.min(b.mac[i]);
+            }
+            s += &format!("  {worst:.3}\n");
         }
         emit(&s)
     }

@@ -104,6 +104,9 @@ pub struct CampbellSummary {
     pub summary: PlotSummary,
     /// (harmonic n, rotor speed Ω in the parameter's units) of each crossing.
     pub crossings: Vec<(usize, f64)>,
+    /// (branch number from 1, harmonic n, Ω) where an eigenvalue branch crosses n·Ω;
+    /// a branch that lies on n·Ω itself (a rigid flap mode at exactly Ω) is not counted.
+    pub branch_crossings: Vec<(usize, usize, f64)>,
 }
 
 /// Units of the Campbell diagram's frequency axis.
@@ -156,6 +159,74 @@ pub struct CampbellSpec {
     pub southwell: Option<(f64, f64)>,
     /// Highest rotor harmonic n drawn (n·Ω for n = 1..=harmonics).
     pub harmonics: usize,
+    /// Eigenvalue branches drawn beside the data (`latdyn modes --vary --json`).
+    pub branches: Vec<EigenBranch>,
+}
+
+/// One mode followed across rotor speeds by `latdyn modes --vary`: Ω [rad/s] and the
+/// rotating-frame frequency [Hz] at each speed (NaN where it was not matched).
+#[derive(Clone, Debug)]
+pub struct EigenBranch {
+    pub label: String,
+    pub omega: Vec<f64>,
+    pub frequencies_hz: Vec<f64>,
+}
+
+/// Read the branches of a `latdyn modes MODEL --vary omega=A:B:N --json` output file.
+pub fn read_branches(path: &Path) -> Result<Vec<EigenBranch>, PlotError> {
+    let err = |message: String| PlotError::File {
+        path: path.to_path_buf(),
+        message,
+    };
+    let text = fs::read_to_string(path).map_err(|e| err(format!("reading: {e}")))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        err(format!(
+            "not JSON ({e}); expected the output of `latdyn modes --vary ... --json`"
+        ))
+    })?;
+    let nums = |x: &serde_json::Value| -> Option<Vec<f64>> {
+        x.as_array()
+            .map(|a| a.iter().map(|y| y.as_f64().unwrap_or(f64::NAN)).collect())
+    };
+    let omega = v.get("omega_rad_s").and_then(nums).ok_or_else(|| {
+        err(
+            "no `omega_rad_s` array: expected the output of `latdyn modes --vary ... --json`"
+                .into(),
+        )
+    })?;
+    let list = v
+        .get("branches")
+        .and_then(|b| b.as_array())
+        .ok_or_else(|| {
+            err(
+                "no `branches` array: expected the output of `latdyn modes --vary ... --json`"
+                    .into(),
+            )
+        })?;
+    let mut out = Vec::new();
+    for (k, b) in list.iter().enumerate() {
+        let f = b
+            .get("frequencies_hz")
+            .and_then(nums)
+            .ok_or_else(|| err(format!("branch {}: no `frequencies_hz` array", k + 1)))?;
+        if f.len() != omega.len() {
+            return Err(err(format!(
+                "branch {}: {} frequencies for {} speeds",
+                k + 1,
+                f.len(),
+                omega.len()
+            )));
+        }
+        out.push(EigenBranch {
+            label: format!("eigenvalue branch {}", k + 1),
+            omega: omega.clone(),
+            frequencies_hz: f,
+        });
+    }
+    if out.is_empty() {
+        return Err(err("no branches in the file".into()));
+    }
+    Ok(out)
 }
 
 /// Parse `A,B` (two numbers), e.g. the `--southwell W0,K` option.
@@ -981,7 +1052,46 @@ pub fn plot_campbell(
             dashed: true,
         });
     }
-    // The model curve under the data.
+    let mut branch_crossings = Vec::new();
+    for (b, br) in spec.branches.iter().enumerate() {
+        let y_rad: Vec<f64> = br
+            .frequencies_hz
+            .iter()
+            .map(|f| std::f64::consts::TAU * f)
+            .collect();
+        for (n, om) in campbell_crossings(&br.omega, &y_rad, spec.harmonics) {
+            let nf = n as f64;
+            // a branch on n·Ω everywhere (to 1e-3) is that harmonic, not a resonance
+            let on_line = br.omega.iter().zip(&y_rad).all(|(&x, &y)| {
+                !(x.is_finite() && y.is_finite()) || (y - nf * x).abs() <= 1e-3 * nf * x.abs()
+            });
+            if !on_line {
+                branch_crossings.push((b + 1, n, om));
+            }
+        }
+        let pts: Vec<(f64, f64)> = br
+            .omega
+            .iter()
+            .copied()
+            .zip(y_rad.iter().map(|y| y * k))
+            .collect();
+        let top = pts
+            .iter()
+            .map(|p| p.1)
+            .filter(|y| y.is_finite())
+            .fold(0.0, f64::max);
+        if top > y_hi && top < 2.0 * y_hi {
+            y_hi = 1.05 * top;
+        }
+        extra.push(Line {
+            label: br.label.clone(),
+            points: pts,
+            color: 2 + b,
+            markers: false,
+            dashed: false,
+        });
+    }
+    // The model curves under the data.
     extra.append(&mut lines);
     let lines = extra;
 
@@ -1032,7 +1142,11 @@ pub fn plot_campbell(
             notes,
         },
     )?;
-    Ok(CampbellSummary { summary, crossings })
+    Ok(CampbellSummary {
+        summary,
+        crossings,
+        branch_crossings,
+    })
 }
 
 // ---------------------------------------------------------------------------------------

@@ -236,10 +236,24 @@ pub struct RotatingModes {
     pub damping: Vec<f64>,
     /// Newton iterations of the steady-state solve
     pub steady_iterations: usize,
+    /// complex mode shapes of the lowest modes (as many as asked for with
+    /// [`rotating_modes_with_shapes`]), by equation index; empty otherwise
+    pub shapes: Vec<Vec<C64>>,
+    /// M·shape for each shape (M the rotating-frame mass matrix), for mass-weighted MAC
+    pub mass_shapes: Vec<Vec<C64>>,
 }
 
 /// Find the steady rotating state and the modes about it.
 pub fn rotating_modes(model: &Model, spin: Spin) -> Result<RotatingModes, LinalgError> {
+    rotating_modes_with_shapes(model, spin, 0)
+}
+
+/// As [`rotating_modes`], with the complex shapes of the lowest `shapes` modes.
+pub fn rotating_modes_with_shapes(
+    model: &Model,
+    spin: Spin,
+    shapes: usize,
+) -> Result<RotatingModes, LinalgError> {
     let mut base = State::new(model);
     joint::apply_drivers(model, &mut base, 0.0);
     let n = model.n_eq;
@@ -276,13 +290,197 @@ pub fn rotating_modes(model: &Model, spin: Spin) -> Result<RotatingModes, Linalg
         fr.base = b;
     }
     let [k, c, m] = fr.jacobians(true);
-    let (freqs, damping) = quadratic_eig(&k, &c, &m, n)?;
+    let qm = quadratic_modes(&k, &c, &m, n, shapes)?;
+    let mass_shapes = qm
+        .shapes
+        .iter()
+        .map(|x| {
+            (0..n)
+                .map(|i| (0..n).fold(C64::ZERO, |acc, j| acc.add(x[j].scale(m[i * n + j]))))
+                .collect()
+        })
+        .collect();
     Ok(RotatingModes {
         omega: norm(spin.omega),
-        frequencies_hz: freqs,
-        damping,
+        frequencies_hz: qm.frequencies_hz,
+        damping: qm.damping,
         steady_iterations: iters,
+        shapes: qm.shapes,
+        mass_shapes,
     })
+}
+
+/// A complex number, just what the shape computation and MAC need.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct C64 {
+    pub re: f64,
+    pub im: f64,
+}
+
+impl C64 {
+    pub const ZERO: C64 = C64 { re: 0.0, im: 0.0 };
+    pub fn new(re: f64, im: f64) -> C64 {
+        C64 { re, im }
+    }
+    pub fn add(self, o: C64) -> C64 {
+        C64::new(self.re + o.re, self.im + o.im)
+    }
+    pub fn sub(self, o: C64) -> C64 {
+        C64::new(self.re - o.re, self.im - o.im)
+    }
+    pub fn mul(self, o: C64) -> C64 {
+        C64::new(
+            self.re * o.re - self.im * o.im,
+            self.re * o.im + self.im * o.re,
+        )
+    }
+    pub fn scale(self, a: f64) -> C64 {
+        C64::new(a * self.re, a * self.im)
+    }
+    pub fn conj(self) -> C64 {
+        C64::new(self.re, -self.im)
+    }
+    pub fn abs(self) -> f64 {
+        self.re.hypot(self.im)
+    }
+    pub fn div(self, o: C64) -> C64 {
+        let d = o.re * o.re + o.im * o.im;
+        C64::new(
+            (self.re * o.re + self.im * o.im) / d,
+            (self.im * o.re - self.re * o.im) / d,
+        )
+    }
+}
+
+/// Solve the complex dense system A x = b in place (row-major n×n, partial pivoting).
+/// An exactly zero pivot is replaced by a tiny one: inverse iteration solves with a
+/// nearly singular matrix on purpose, and only the direction of the result matters.
+fn complex_solve(a: &mut [C64], n: usize, b: &mut [C64]) {
+    let big = a.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+    let tiny = 1e-300f64.max(f64::EPSILON * f64::EPSILON * big);
+    for col in 0..n {
+        let p = (col..n)
+            .max_by(|&i, &j| a[i * n + col].abs().total_cmp(&a[j * n + col].abs()))
+            .unwrap_or(col);
+        if p != col {
+            for j in 0..n {
+                a.swap(p * n + j, col * n + j);
+            }
+            b.swap(p, col);
+        }
+        if a[col * n + col].abs() < tiny {
+            a[col * n + col] = C64::new(tiny, 0.0);
+        }
+        let piv = a[col * n + col];
+        for i in col + 1..n {
+            let f = a[i * n + col].div(piv);
+            if f == C64::ZERO {
+                continue;
+            }
+            for j in col..n {
+                let v = a[col * n + j];
+                a[i * n + j] = a[i * n + j].sub(f.mul(v));
+            }
+            b[i] = b[i].sub(f.mul(b[col]));
+        }
+    }
+    for i in (0..n).rev() {
+        let mut acc = b[i];
+        for j in i + 1..n {
+            acc = acc.sub(a[i * n + j].mul(b[j]));
+        }
+        b[i] = acc.div(a[i * n + i]);
+    }
+}
+
+/// Modal assurance criterion of two complex shapes, mass-weighted:
+/// |aᴴ M b|² / ((aᴴ M a)(bᴴ M b)), with `mb` = M b, `ma` = M a. 1 = same shape, 0 = M-orthogonal.
+pub fn mac(a: &[C64], ma: &[C64], b: &[C64], mb: &[C64]) -> f64 {
+    let dot = |x: &[C64], y: &[C64]| {
+        x.iter()
+            .zip(y)
+            .fold(C64::ZERO, |acc, (p, q)| acc.add(p.conj().mul(*q)))
+    };
+    let ab = dot(a, mb);
+    let aa = dot(a, ma).abs();
+    let bb = dot(b, mb).abs();
+    if aa <= 0.0 || bb <= 0.0 {
+        return 0.0;
+    }
+    (ab.abs() * ab.abs()) / (aa * bb)
+}
+
+/// One mode followed across the values of a parameter (rotor speeds).
+#[derive(Clone, Debug, Default)]
+pub struct Branch {
+    /// frequency at each value [Hz]; NaN where no mode could be matched
+    pub frequencies_hz: Vec<f64>,
+    pub damping: Vec<f64>,
+    /// MAC of the match against the branch's shape at the previous value (1 at the first)
+    pub mac: Vec<f64>,
+}
+
+/// Follow the lowest `count` modes of `steps[0]` across the steps by their shapes (MAC),
+/// not by their frequency order, so that two branches whose frequencies cross keep their
+/// identity. Each step must hold shapes for at least `count` modes (a few more let a
+/// branch find its mode when others move down past it). Matching is greedy on the
+/// largest MAC; a branch's reference shape is renewed only by a confident match
+/// (MAC ≥ 0.8), so a value landing exactly on a crossing, where the two shapes mix,
+/// does not hand the branch over to the other mode.
+pub fn track_branches(steps: &[RotatingModes], count: usize) -> Vec<Branch> {
+    let Some(first) = steps.first() else {
+        return Vec::new();
+    };
+    let count = count.min(first.shapes.len());
+    let mut branches: Vec<Branch> = (0..count)
+        .map(|k| Branch {
+            frequencies_hz: vec![first.frequencies_hz[k]],
+            damping: vec![first.damping[k]],
+            mac: vec![1.0],
+        })
+        .collect();
+    let mut refs: Vec<(Vec<C64>, Vec<C64>)> = (0..count)
+        .map(|k| (first.shapes[k].clone(), first.mass_shapes[k].clone()))
+        .collect();
+    for st in &steps[1..] {
+        let nc = st.shapes.len();
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::with_capacity(count * nc);
+        for (b, (x, mx)) in refs.iter().enumerate() {
+            for c in 0..nc {
+                if x.len() == st.shapes[c].len() {
+                    pairs.push((mac(x, mx, &st.shapes[c], &st.mass_shapes[c]), b, c));
+                }
+            }
+        }
+        pairs.sort_by(|p, q| q.0.total_cmp(&p.0));
+        let mut got: Vec<Option<(usize, f64)>> = vec![None; count];
+        let mut taken = vec![false; nc];
+        for (v, b, c) in pairs {
+            if got[b].is_none() && !taken[c] {
+                got[b] = Some((c, v));
+                taken[c] = true;
+            }
+        }
+        for (b, g) in got.iter().enumerate() {
+            let br = &mut branches[b];
+            match *g {
+                Some((c, v)) => {
+                    br.frequencies_hz.push(st.frequencies_hz[c]);
+                    br.damping.push(st.damping[c]);
+                    br.mac.push(v);
+                    if v >= 0.8 {
+                        refs[b] = (st.shapes[c].clone(), st.mass_shapes[c].clone());
+                    }
+                }
+                None => {
+                    br.frequencies_hz.push(f64::NAN);
+                    br.damping.push(f64::NAN);
+                    br.mac.push(0.0);
+                }
+            }
+        }
+    }
+    branches
 }
 
 /// Frequencies [Hz] and damping ratios of M ẍ + C ẋ + K x = 0 (one per conjugate pair),
@@ -293,6 +491,30 @@ pub fn quadratic_eig(
     m: &[f64],
     n: usize,
 ) -> Result<(Vec<f64>, Vec<f64>), LinalgError> {
+    let q = quadratic_modes(k, c, m, n, 0)?;
+    Ok((q.frequencies_hz, q.damping))
+}
+
+/// Eigen-solution of M ẍ + C ẋ + K x = 0: ascending frequencies, damping ratios and the
+/// complex shapes of the lowest `shapes` modes (full length n, massless coordinates
+/// recovered from the condensation; largest component scaled to 1).
+pub struct QuadraticModes {
+    pub frequencies_hz: Vec<f64>,
+    pub damping: Vec<f64>,
+    pub shapes: Vec<Vec<C64>>,
+}
+
+/// [`quadratic_eig`] plus shapes. The eigenvalues come from the first-order companion
+/// matrix; each wanted shape then from two steps of inverse iteration on the quadratic
+/// pencil Q(λ) = λ²M + λC + K at that eigenvalue (size of the condensed system, not
+/// twice it), which converges in one step because the shift is the eigenvalue itself.
+pub fn quadratic_modes(
+    k: &[f64],
+    c: &[f64],
+    m: &[f64],
+    n: usize,
+    shapes: usize,
+) -> Result<QuadraticModes, LinalgError> {
     let mmax = (0..n).map(|i| m[i * n + i].abs()).fold(0.0, f64::max);
     let keep: Vec<usize> = (0..n)
         .filter(|&i| m[i * n + i].abs() > 1e-12 * mmax)
@@ -309,6 +531,8 @@ pub fn quadratic_eig(
     let mut kk = sub(k, &keep, &keep);
     let ck = sub(c, &keep, &keep);
     let mk = sub(m, &keep, &keep);
+    // condensation map x_drop = T x_keep, T = −K_dd⁻¹ K_dk (row-major nd × nk)
+    let mut tmap = vec![0.0; nd * nk];
     if nd > 0 {
         let kdd = sub(k, &drop, &drop);
         let kdk = sub(k, &drop, &keep);
@@ -318,6 +542,9 @@ pub fn quadratic_eig(
             dense_solve(&kdd, nd, &mut rhs)?;
             for row in 0..nk {
                 kk[row * nk + col] += (0..nd).map(|r| kkd[row * nd + r] * rhs[r]).sum::<f64>();
+            }
+            for r in 0..nd {
+                tmap[r * nk + col] = rhs[r];
             }
         }
     }
@@ -344,14 +571,62 @@ pub fn quadratic_eig(
         }
     }
     let ev = general_eig(&a, n2)?;
-    let mut modes: Vec<(f64, f64)> = ev
+    let mut modes: Vec<(f64, f64, f64, f64)> = ev
         .into_iter()
         .filter(|(_, im)| *im > 0.0)
         .map(|(re, im)| {
             let wn = (re * re + im * im).sqrt();
-            (im / (2.0 * std::f64::consts::PI), -re / wn)
+            (im / (2.0 * std::f64::consts::PI), -re / wn, re, im)
         })
         .collect();
     modes.sort_by(|a, b| a.0.total_cmp(&b.0));
-    Ok(modes.into_iter().unzip())
+    let mut out_shapes = Vec::new();
+    for &(_, _, re, im) in modes.iter().take(shapes) {
+        let lam = C64::new(re, im);
+        // shift a hair off the eigenvalue so the factorisation stays finite
+        let h = 1e-10 * lam.abs().max(f64::MIN_POSITIVE);
+        let sigma = lam.add(C64::new(h, h));
+        let s2 = sigma.mul(sigma);
+        let q: Vec<C64> = (0..nk * nk)
+            .map(|ij| {
+                s2.scale(mk[ij])
+                    .add(sigma.scale(ck[ij]))
+                    .add(C64::new(kk[ij], 0.0))
+            })
+            .collect();
+        // deterministic start vector with no special symmetry
+        let mut x: Vec<C64> = (0..nk)
+            .map(|i| C64::new(1.0 + 0.37 * (i as f64).sin(), 0.21 * (1.3 * i as f64).cos()))
+            .collect();
+        for _ in 0..2 {
+            let mut qq = q.clone();
+            complex_solve(&mut qq, nk, &mut x);
+            let big = x.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+            if !(big.is_finite() && big > 0.0) {
+                return Err(LinalgError::NonFinite);
+            }
+            x.iter_mut().for_each(|z| *z = z.scale(1.0 / big));
+        }
+        let mut full = vec![C64::ZERO; n];
+        for (i, &gi) in keep.iter().enumerate() {
+            full[gi] = x[i];
+        }
+        for (r, &gi) in drop.iter().enumerate() {
+            full[gi] = (0..nk).fold(C64::ZERO, |acc, j| acc.add(x[j].scale(tmap[r * nk + j])));
+        }
+        // phase and scale: largest component = 1
+        let imax = (0..n)
+            .max_by(|&i, &j| full[i].abs().total_cmp(&full[j].abs()))
+            .unwrap_or(0);
+        let p = full[imax];
+        if p.abs() > 0.0 {
+            full.iter_mut().for_each(|z| *z = z.div(p));
+        }
+        out_shapes.push(full);
+    }
+    Ok(QuadraticModes {
+        frequencies_hz: modes.iter().map(|m| m.0).collect(),
+        damping: modes.iter().map(|m| m.1).collect(),
+        shapes: out_shapes,
+    })
 }
