@@ -37,20 +37,29 @@ impl ElementEval for Recorder {
     }
 }
 
-fn worst(cpu: &[ElemOut], g: &[ElemOut]) -> f64 {
+/// Worst relative error over f, K, M, normwise; the scale of f has the floor
+/// max|K|·L0·eps, the force of a strain `eps` (see tests/gpu.rs).
+fn worst(elems: &[ElemData], cpu: &[ElemOut], g: &[ElemOut], eps: f64) -> f64 {
     let mut w = 0.0f64;
-    for (c, o) in cpu.iter().zip(g) {
-        let pairs: [(&[f64], &[f64]); 3] = [
-            (&c.f, &o.f),
-            (c.k.as_flattened(), o.k.as_flattened()),
-            (c.m.as_flattened(), o.m.as_flattened()),
-        ];
-        for (a, b) in pairs {
-            let s = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            let d = a
-                .iter()
+    for ((e, c), o) in elems.iter().zip(cpu).zip(g) {
+        let maxabs = |a: &[f64]| a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let diff = |a: &[f64], b: &[f64]| {
+            a.iter()
                 .zip(b)
-                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        };
+        let kmax = maxabs(c.k.as_flattened());
+        let scales = [
+            maxabs(&c.f).max(kmax * e.l0 * eps),
+            kmax,
+            maxabs(c.m.as_flattened()),
+        ];
+        let diffs = [
+            diff(&c.f, &o.f),
+            diff(c.k.as_flattened(), o.k.as_flattened()),
+            diff(c.m.as_flattened(), o.m.as_flattened()),
+        ];
+        for (d, s) in diffs.iter().zip(scales) {
             if s > 0.0 {
                 w = w.max(d / s);
             }
@@ -162,7 +171,15 @@ fn main() {
                     1e3 * tt.upload_s / r,
                     1e3 * tt.kernel_s / r,
                     1e3 * tt.download_s / r,
-                    worst(&cpu, &out)
+                    worst(
+                        &elems,
+                        &cpu,
+                        &out,
+                        match ctx.precision {
+                            Precision::F32 => f32::EPSILON as f64 / 2.0,
+                            Precision::F64 => f64::EPSILON / 2.0,
+                        }
+                    )
                 );
             }
         }
