@@ -12,10 +12,63 @@
 //! to the M/(βh²) term; the velocity derivative of the chains' convective accelerations;
 //! the load stiffness of distributed gravity on beams.
 
-use crate::element::{self, ElemData, Mat12, NDOF};
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use crate::element::{self, CpuEval, ElemData, ElemIn, ElemOut, ElementEval, Mat12, NDOF};
 use crate::joint::{self, Chain, State};
 use crate::math::*;
 use crate::model::Model;
+
+thread_local! {
+    /// Element stage that [`Assembler::new`] gives new assemblers on this thread (None:
+    /// the CPU functions). Set by [`with_evaluator`]: the GPU ensemble runs each variant's
+    /// unchanged solver on a thread whose assemblers talk to the shared GPU batcher.
+    static THREAD_EVAL: RefCell<Option<Arc<dyn ElementEval>>> = const { RefCell::new(None) };
+}
+
+/// Run `f` with `eval` as the element stage of every [`Assembler`] created inside it on
+/// this thread.
+pub fn with_evaluator<R>(eval: Arc<dyn ElementEval>, f: impl FnOnce() -> R) -> R {
+    struct Reset(Option<Arc<dyn ElementEval>>);
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            let prev = self.0.take();
+            THREAD_EVAL.with(|t| *t.borrow_mut() = prev);
+        }
+    }
+    let prev = THREAD_EVAL.with(|t| t.borrow_mut().replace(eval));
+    let _reset = Reset(prev);
+    f()
+}
+
+/// Per-element gathered data the scatter needs besides the element outputs.
+#[derive(Clone, Copy)]
+struct Gathered {
+    ch: [Chain; 2],
+    y: [Vec3; 2],
+    /// nodal accelerations (with the chains' convective parts)
+    a12: [f64; NDOF],
+}
+
+/// Scratch of the element stage, sized once per model (the hot path does not allocate).
+struct Scratch {
+    gathered: Vec<Gathered>,
+    inputs: Vec<ElemIn>,
+    out: Vec<ElemOut>,
+}
+
+/// Cumulative wall time of the assembly stages [s] (see [`Assembler::stage_times`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StageTimes {
+    /// the element stage (CPU functions or GPU round trip)
+    pub element_s: f64,
+    /// everything else in `evaluate`: gather, projection through the chains, scatter
+    pub assembly_s: f64,
+    pub calls: u64,
+}
 
 /// Receives Jacobian entries by equation indices.
 pub trait Sink {
@@ -88,6 +141,13 @@ pub struct Assembler {
     pub n_eq: usize,
     /// equations that are angles (spins, hinges, body rotations): Newton limits their step
     pub rot_eq: Vec<bool>,
+    /// the element stage (CPU reference unless set otherwise, see [`with_evaluator`])
+    pub eval: Arc<dyn ElementEval>,
+    /// uncontended: `evaluate` takes `&self`, and one assembler serves one solver thread
+    scratch: Mutex<Scratch>,
+    element_ns: AtomicU64,
+    total_ns: AtomicU64,
+    calls: AtomicU64,
 }
 
 /// Scalars gathered during assembly.
@@ -127,11 +187,51 @@ impl Assembler {
                 }
             }
         }
+        let ne = model.elements.len();
+        let empty = Gathered {
+            ch: [Chain::empty(); 2],
+            y: [[0.0; 3]; 2],
+            a12: [0.0; NDOF],
+        };
+        let eval = THREAD_EVAL
+            .with(|t| t.borrow().clone())
+            .unwrap_or_else(|| Arc::new(CpuEval));
         Assembler {
             elems,
             eq: model.dofs.iter().map(|d| d.eq).collect(),
             n_eq: model.n_eq,
             rot_eq,
+            eval,
+            scratch: Mutex::new(Scratch {
+                gathered: vec![empty; ne],
+                inputs: vec![
+                    ElemIn {
+                        state: element::ElemState {
+                            u1: [0.0; 3],
+                            r1: I3,
+                            u2: [0.0; 3],
+                            r2: I3,
+                        },
+                        v12: [0.0; NDOF],
+                    };
+                    ne
+                ],
+                out: vec![ElemOut::default(); ne],
+            }),
+            element_ns: AtomicU64::new(0),
+            total_ns: AtomicU64::new(0),
+            calls: AtomicU64::new(0),
+        }
+    }
+
+    /// Cumulative time split of all `evaluate` calls so far.
+    pub fn stage_times(&self) -> StageTimes {
+        let el = self.element_ns.load(Ordering::Relaxed) as f64 * 1e-9;
+        let tot = self.total_ns.load(Ordering::Relaxed) as f64 * 1e-9;
+        StageTimes {
+            element_s: el,
+            assembly_s: (tot - el).max(0.0),
+            calls: self.calls.load(Ordering::Relaxed),
         }
     }
 
@@ -180,8 +280,12 @@ impl Assembler {
                 info.force_scale = info.force_scale.max(x.abs());
             }
         };
+        let t_start = Instant::now();
+        let need_inertia = c.inertia || has_gravity;
+        let mut guard = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
+        let scratch = &mut *guard;
+        // (a) gather: element states, chains, nodal velocities and accelerations
         for (ie, el) in model.elements.iter().enumerate() {
-            let ed = &self.elems[ie];
             let (n1, n2) = (el.n1, el.n2);
             let es = joint::elem_state(model, s, ie);
             let ch = [
@@ -192,31 +296,56 @@ impl Assembler {
                 joint::node_position(model, s, n1),
                 joint::node_position(model, s, n2),
             ];
-            let (mut f, k) = element::internal_force_tangent(ed, &es);
-            track(&mut info, &f);
-            info.strain_energy += element::strain_energy(ed, &es);
-            if has_gravity {
-                info.gravity_energy += element::gravity_energy(ed, &es, model.x0[n1], g);
-            }
-            let mut m = [[0.0; NDOF]; NDOF];
-            let mut cmat = [[0.0; NDOF]; NDOF];
-            if c.inertia || has_gravity {
-                let mut v12 = [0.0; NDOF];
-                let mut a12 = [0.0; NDOF];
-                if c.inertia {
-                    for nd in 0..2 {
-                        let (vl, va) = ch[nd].velocity(y[nd], &s.v);
-                        let (al, aa) = ch[nd].velocity(y[nd], &s.a);
-                        let (cl, ca) = ch[nd].convective_acc(y[nd], &s.v);
-                        v12[6 * nd..6 * nd + 3].copy_from_slice(&vl);
-                        v12[6 * nd + 3..6 * nd + 6].copy_from_slice(&va);
-                        a12[6 * nd..6 * nd + 3].copy_from_slice(&add(al, cl));
-                        a12[6 * nd + 3..6 * nd + 6].copy_from_slice(&add(aa, ca));
-                    }
+            let mut v12 = [0.0; NDOF];
+            let mut a12 = [0.0; NDOF];
+            if c.inertia {
+                for nd in 0..2 {
+                    let (vl, va) = ch[nd].velocity(y[nd], &s.v);
+                    let (al, aa) = ch[nd].velocity(y[nd], &s.a);
+                    let (cl, ca) = ch[nd].convective_acc(y[nd], &s.v);
+                    v12[6 * nd..6 * nd + 3].copy_from_slice(&vl);
+                    v12[6 * nd + 3..6 * nd + 6].copy_from_slice(&va);
+                    a12[6 * nd..6 * nd + 3].copy_from_slice(&add(al, cl));
+                    a12[6 * nd + 3..6 * nd + 6].copy_from_slice(&add(aa, ca));
                 }
-                let (mm, sv, cc) = element::inertia(ed, &es, &v12);
-                m = mm;
-                cmat = cc;
+            }
+            scratch.gathered[ie] = Gathered { ch, y, a12 };
+            scratch.inputs[ie] = ElemIn { state: es, v12 };
+        }
+        // (b) the element stage
+        let t_el = Instant::now();
+        if let Err(e) =
+            self.eval
+                .evaluate(&self.elems, &scratch.inputs, need_inertia, &mut scratch.out)
+        {
+            // a failed backend poisons the residual: Newton reports no convergence and
+            // the variant is marked failed with the time, instead of a panic
+            eprintln!("latdyn: {e}");
+            for o in scratch.out.iter_mut() {
+                o.f = [f64::NAN; NDOF];
+            }
+        }
+        self.element_ns
+            .fetch_add(t_el.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        // (c) scatter
+        for (ie, el) in model.elements.iter().enumerate() {
+            let ed = &self.elems[ie];
+            let n1 = el.n1;
+            let es = &scratch.inputs[ie].state;
+            let Gathered { ch, y, a12 } = scratch.gathered[ie];
+            let v12 = scratch.inputs[ie].v12;
+            let o = &scratch.out[ie];
+            let mut f = o.f;
+            let k = &o.k;
+            track(&mut info, &f);
+            info.strain_energy += o.energy;
+            if has_gravity {
+                info.gravity_energy += element::gravity_energy(ed, es, model.x0[n1], g);
+            }
+            let m = &o.m;
+            let mut cmat = o.c;
+            if need_inertia {
+                let sv = o.s;
                 // gravity: the consistent load of a uniform field is M times a rigid
                 // translation by g
                 let gv = [
@@ -367,6 +496,9 @@ impl Assembler {
                 }
             }
         }
+        self.total_ns
+            .fetch_add(t_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        self.calls.fetch_add(1, Ordering::Relaxed);
         info
     }
 

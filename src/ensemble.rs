@@ -19,6 +19,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::assembly::Assembler;
+use crate::element::ElementEval;
 use crate::joint::State;
 use crate::linalg::SparseLuSymbolic;
 use crate::model::{self, Model};
@@ -294,6 +295,31 @@ fn topology(m: &Model) -> String {
     )
 }
 
+/// Where a campaign's element stage runs (see `crate::gpu`), and what the campaign file
+/// records about it.
+#[derive(Clone)]
+pub struct Stage {
+    /// "cpu" or "gpu"
+    pub backend: String,
+    /// "f64" or "f32"
+    pub precision: String,
+    /// GPU adapter label, empty on the CPU
+    pub adapter: String,
+    /// makes each variant's element stage (None: the CPU functions)
+    pub make: Option<Arc<dyn Fn() -> Arc<dyn ElementEval> + Send + Sync>>,
+}
+
+impl Stage {
+    pub fn cpu() -> Stage {
+        Stage {
+            backend: "cpu".into(),
+            precision: "f64".into(),
+            adapter: String::new(),
+            make: None,
+        }
+    }
+}
+
 /// Run the prepared variants. `stop` ends the campaign early (Ctrl-C); `progress` is
 /// called after each finished variant with (done, total).
 pub fn run(
@@ -303,6 +329,19 @@ pub fn run(
     keep_history: bool,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Vec<Outcome>, EnsembleError> {
+    run_on(c, p, stop, keep_history, progress, &Stage::cpu())
+}
+
+/// [`run`] with the element stage of every variant from `stage` (each variant's solver is
+/// unchanged; only its element evaluations go elsewhere, e.g. to a shared GPU batcher).
+pub fn run_on(
+    c: &Campaign,
+    p: &Prepared,
+    stop: &AtomicBool,
+    keep_history: bool,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    stage: &Stage,
+) -> Result<Vec<Outcome>, EnsembleError> {
     let nv = p.models.len();
     let writer = match &c.output {
         Some(path) => {
@@ -311,8 +350,9 @@ pub fn run(
                 command_line: c.command_line.clone(),
                 model_path: c.model_path.display().to_string(),
                 model_source: first.map(|m| m.source.clone()).unwrap_or_default(),
-                backend: "cpu".into(),
-                precision: "f64".into(),
+                backend: stage.backend.clone(),
+                precision: stage.precision.clone(),
+                adapter: stage.adapter.clone(),
                 threads: c.threads,
                 parameter_names: p.parameter_names.clone(),
                 parameter_values: p
@@ -380,7 +420,12 @@ pub fn run(
                 // samples go to the file when the variant ends (completed, failed or
                 // interrupted alike), so workers do not contend for the writer per sample
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {})
+                    let sim =
+                        || dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {});
+                    match &stage.make {
+                        Some(make) => crate::assembly::with_evaluator(make(), sim),
+                        None => sim(),
+                    }
                 }));
                 let wall = t0.elapsed().as_secs_f64();
                 let (hist, mut stats, err) = match result {

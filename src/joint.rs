@@ -283,7 +283,7 @@ pub struct Chain {
 }
 
 impl Chain {
-    fn empty() -> Chain {
+    pub fn empty() -> Chain {
         Chain {
             n: 0,
             cols: [Col::default(); MAXCHAIN],

@@ -13,6 +13,7 @@
 pub mod assembly;
 pub mod element;
 pub mod ensemble;
+pub mod gpu;
 pub mod joint;
 pub mod linalg;
 pub mod math;

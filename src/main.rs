@@ -25,8 +25,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Verb {
-    /// Load and compile a model and print a summary
-    Check(ModelArgs),
+    /// Load and compile a model and print a summary; `--gpu` lists the GPU adapters
+    Check(CheckArgs),
     /// Static equilibrium under the model's loads
     Statics(ModelArgs),
     /// Natural frequencies and mode shapes (about the static equilibrium under the model's
@@ -75,6 +75,36 @@ impl ModelArgs {
 }
 
 #[derive(Args)]
+struct CheckArgs {
+    /// model file (TOML); optional with --gpu
+    #[arg(required_unless_present = "gpu")]
+    model: Option<PathBuf>,
+    /// override a parameter: --set NAME=VALUE (repeatable; VALUE may be `2*pi`)
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = model::parse_set)]
+    set: Vec<(String, f64)>,
+    /// machine-readable output (JSON on stdout)
+    #[arg(long)]
+    json: bool,
+    /// list the GPU adapters found (backend, device type, f64 support) and which one
+    /// each --backend choice would use
+    #[arg(long)]
+    gpu: bool,
+}
+
+/// `--backend` and `--precision` of `run` and `sweep`.
+#[derive(Args, Clone)]
+struct BackendArgs {
+    /// element evaluation: `cpu` (f64 reference), `gpu` (WGSL kernels on any adapter,
+    /// software ones included), `auto` (a hardware GPU when present and the batch is
+    /// large enough, else cpu)
+    #[arg(long, default_value = "auto", value_parser = ["auto", "cpu", "gpu"])]
+    backend: String,
+    /// scalar of the GPU kernels; f64 needs an adapter with SHADER_F64 (the CPU is f64)
+    #[arg(long, default_value = "f64", value_parser = ["f64", "f32"])]
+    precision: String,
+}
+
+#[derive(Args)]
 struct ModesArgs {
     #[command(flatten)]
     model: ModelArgs,
@@ -108,10 +138,10 @@ struct SweepArgs {
     /// campaign file (HDF5)
     #[arg(short, long, value_name = "PATH")]
     output: Option<PathBuf>,
-    /// element evaluation backend (this build: cpu; auto picks cpu)
-    #[arg(long, default_value = "auto", value_parser = ["auto", "cpu", "gpu"])]
-    backend: String,
-    /// worker threads (default: all cores)
+    #[command(flatten)]
+    backend: BackendArgs,
+    /// worker threads (default: all cores; with a GPU backend, one per variant in flight,
+    /// up to 128)
     #[arg(long)]
     threads: Option<usize>,
     /// run only the K-th of N interleaved subsets of the variants: K/N
@@ -140,6 +170,8 @@ struct RunArgs {
     /// output file
     #[arg(short, long, value_name = "PATH")]
     output: Option<PathBuf>,
+    #[command(flatten)]
+    backend: BackendArgs,
 }
 
 /// `latdyn plot FILE.h5 (--sensor S... | --x S --y S | --campbell P --derived D) -o OUT`
@@ -567,9 +599,15 @@ fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> anyhow::Resu
 }
 
 fn run(args: &RunArgs) -> anyhow::Result<()> {
-    let m = args.model.load()?;
+    let mut m = args.model.load()?;
+    let (stage, _batcher) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
+    m.solver.tol = latdyn::gpu::newton_tol(m.solver.tol, &stage.precision);
     let t0 = std::time::Instant::now();
-    let (hist, stats, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
+    let simulate = || latdyn::solver::dynamics::run(&m, |_, _| {});
+    let (hist, stats, err) = match &stage.make {
+        Some(make) => latdyn::assembly::with_evaluator(make(), simulate),
+        None => simulate(),
+    };
     let wall = t0.elapsed().as_secs_f64();
     if let Some(path) = &args.output {
         if path
@@ -578,7 +616,7 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
         {
             write_csv(&m, &hist, path)?;
         } else {
-            write_single_h5(&m, &hist, &stats, err.as_ref(), wall, path)?;
+            write_single_h5(&m, &hist, &stats, err.as_ref(), wall, path, &stage)?;
         }
     }
     if let Some(e) = &err {
@@ -614,6 +652,9 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "wall_s": wall,
             "status": if err.is_some() { "failed" } else { "completed" },
             "message": err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+            "backend": stage.backend,
+            "precision": stage.precision,
+            "adapter": stage.adapter,
         });
         emit(&format!("{v}\n"))?;
     } else {
@@ -636,14 +677,16 @@ fn write_single_h5(
     err: Option<&latdyn::solver::dynamics::DynamicsError>,
     wall: f64,
     path: &std::path::Path,
+    stage: &latdyn::ensemble::Stage,
 ) -> anyhow::Result<()> {
     use latdyn::output::*;
     let meta = CampaignMeta {
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
         model_path: m.path.clone(),
         model_source: m.source.clone(),
-        backend: "cpu".into(),
-        precision: "f64".into(),
+        backend: stage.backend.clone(),
+        precision: stage.precision.clone(),
+        adapter: stage.adapter.clone(),
         threads: 1,
         parameter_names: m.params.iter().map(|(n, _)| n.clone()).collect(),
         parameter_values: vec![m.params.iter().map(|(_, v)| *v).collect()],
@@ -694,11 +737,6 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     use std::io::IsTerminal;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
-    if args.backend == "gpu" {
-        return Err(anyhow!(
-            "--backend gpu: no GPU backend in this build (the WGSL kernels are not built yet); use --backend cpu"
-        ));
-    }
     let mut variants = ensemble::grid(&args.vary);
     if let Some(csv) = &args.variants {
         let rows = ensemble::read_variants_csv(csv)?;
@@ -739,10 +777,19 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             Some((name.to_string(), c))
         }
     };
-    let threads = args.threads.unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    // the element count decides `auto`; the model is compiled again per variant later
+    let n_elem = args.model.load()?.elements.len();
+    let n_var = variants.len().max(1);
+    let (stage, batcher) = choose_stage(&args.backend, n_var, n_elem, cores)?;
+    let threads = args.threads.unwrap_or(if stage.make.is_some() {
+        // GPU: one solver thread per variant in flight; they sleep while the batcher
+        // evaluates their elements, so many more than cores keeps the batches large
+        n_var.clamp(1, GPU_BATCH_THREADS)
+    } else {
+        cores
     });
     let c = Campaign {
         model_path: args.model.model.clone(),
@@ -754,7 +801,10 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         frequency_sensor,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
     };
-    let prepared = ensemble::prepare(&c)?;
+    let mut prepared = ensemble::prepare(&c)?;
+    for m in prepared.models.iter_mut() {
+        m.solver.tol = latdyn::gpu::newton_tol(m.solver.tol, &stage.precision);
+    }
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
@@ -775,11 +825,30 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         None
     };
     let t0 = std::time::Instant::now();
-    let outcomes = ensemble::run(&c, &prepared, &stop, false, &|done, _| {
-        if let Some(b) = &bar {
-            b.set_position(done as u64);
-        }
-    })?;
+    let outcomes = ensemble::run_on(
+        &c,
+        &prepared,
+        &stop,
+        false,
+        &|done, _| {
+            if let Some(b) = &bar {
+                b.set_position(done as u64);
+            }
+        },
+        &stage,
+    )?;
+    if let Some(b) = &batcher {
+        let st = b.stats();
+        eprintln!(
+            "gpu {}: {} rounds, {:.1} requests per round, upload {:.3} s, kernels {:.3} s, download {:.3} s",
+            b.name(),
+            st.rounds,
+            st.requests as f64 / st.rounds.max(1) as f64,
+            st.gpu.upload_s,
+            st.gpu.kernel_s,
+            st.gpu.download_s
+        );
+    }
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
@@ -849,8 +918,9 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         let v = serde_json::json!({
             "variants": vs,
             "wall_s": wall,
-            "backend": "cpu",
-            "precision": "f64",
+            "backend": stage.backend,
+            "precision": stage.precision,
+            "adapter": stage.adapter,
             "threads": threads,
         });
         emit(&format!("{v}\n"))?;
@@ -888,7 +958,134 @@ fn write_csv(
     std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
 }
 
-fn check(args: &ModelArgs) -> anyhow::Result<()> {
+/// Solver threads of a GPU sweep (variants in flight, each waiting on the batcher).
+const GPU_BATCH_THREADS: usize = 128;
+
+/// `--backend auto` uses a hardware GPU only from this many element evaluations per
+/// Newton round (variants in flight × elements) on: below it one round trip's fixed
+/// latency exceeds the CPU's time for the batch. See README "GPU backend".
+const AUTO_GPU_MIN_ELEMENTS: usize = 4096;
+
+/// Resolve `--backend`/`--precision` into an element stage (and the batcher behind it).
+fn choose_stage(
+    b: &BackendArgs,
+    n_variants: usize,
+    n_elem: usize,
+    cores: usize,
+) -> anyhow::Result<(
+    latdyn::ensemble::Stage,
+    Option<std::sync::Arc<latdyn::gpu::batch::Batcher>>,
+)> {
+    use latdyn::ensemble::Stage;
+    use latdyn::gpu::{self, batch::Batcher, GpuContext, Precision};
+    let precision = Precision::parse(&b.precision).map_err(|e| anyhow!(e))?;
+    let want_gpu = match b.backend.as_str() {
+        "cpu" => {
+            if precision == Precision::F32 {
+                return Err(anyhow!(
+                    "--backend cpu --precision f32: the CPU path is f64 only; use --precision f64 or --backend gpu"
+                ));
+            }
+            false
+        }
+        "gpu" => true,
+        _ => {
+            let in_flight = n_variants.min(GPU_BATCH_THREADS.max(cores));
+            if in_flight * n_elem < AUTO_GPU_MIN_ELEMENTS {
+                false
+            } else {
+                // hardware only; a missing adapter or f64 support just means the CPU
+                gpu::select(precision, false).is_ok()
+            }
+        }
+    };
+    if !want_gpu {
+        return Ok((Stage::cpu(), None));
+    }
+    let ctx = GpuContext::open(precision, b.backend == "gpu")
+        .map_err(|e| anyhow!("--backend {}: {e}", b.backend))?;
+    let adapter = ctx.adapter.label();
+    eprintln!("element stage: gpu on {adapter}, {}", precision.as_str());
+    let batcher = Batcher::start(ctx, std::time::Duration::from_millis(2));
+    let bb = batcher.clone();
+    let stage = Stage {
+        backend: "gpu".into(),
+        precision: precision.as_str().into(),
+        adapter,
+        make: Some(std::sync::Arc::new(move || {
+            bb.client() as std::sync::Arc<dyn latdyn::element::ElementEval>
+        })),
+    };
+    Ok((stage, Some(batcher)))
+}
+
+/// `latdyn check --gpu`: the adapters and what each backend choice would use.
+fn check_gpu(json: bool) -> anyhow::Result<()> {
+    use latdyn::gpu::{self, Precision};
+    let list = gpu::adapter_summaries();
+    let pick = |p: Precision, soft: bool| {
+        gpu::select(p, soft)
+            .map(|(_, s)| s.label())
+            .unwrap_or_else(|e| format!("none ({e})"))
+    };
+    let text = if json {
+        let v = serde_json::json!({
+            "adapters": list.iter().map(|a| serde_json::json!({
+                "name": a.name, "backend": a.backend, "device_type": a.device_type,
+                "driver": a.driver, "shader_f64": a.shader_f64, "software": a.is_software(),
+            })).collect::<Vec<_>>(),
+            "gpu_f32": pick(Precision::F32, true),
+            "gpu_f64": pick(Precision::F64, true),
+            "auto_hardware": pick(Precision::F32, false),
+        });
+        format!("{v}\n")
+    } else {
+        let mut s = format!("GPU adapters: {}\n", list.len());
+        for a in &list {
+            s += &format!(
+                "  {:<40} {:<7} {:<14} f64 {:<3} {}\n",
+                a.name,
+                a.backend,
+                a.device_type,
+                if a.shader_f64 { "yes" } else { "no" },
+                a.driver
+            );
+        }
+        s += &format!(
+            "  --backend gpu --precision f32: {}\n",
+            pick(Precision::F32, true)
+        );
+        s += &format!(
+            "  --backend gpu --precision f64: {}\n",
+            pick(Precision::F64, true)
+        );
+        s += &format!(
+            "  --backend auto (hardware only, large batches): {}\n",
+            pick(Precision::F32, false)
+        );
+        s
+    };
+    std::io::stdout()
+        .lock()
+        .write_all(text.as_bytes())
+        .context("writing to stdout")
+}
+
+fn check(a: &CheckArgs) -> anyhow::Result<()> {
+    if a.gpu {
+        check_gpu(a.json)?;
+    }
+    match &a.model {
+        Some(model) => check_model(&ModelArgs {
+            model: model.clone(),
+            set: a.set.clone(),
+            json: a.json,
+        }),
+        None => Ok(()),
+    }
+}
+
+fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
     let m = args.load()?;
     let driven = m
         .dofs

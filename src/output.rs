@@ -9,7 +9,8 @@
 //! parameters, `C` = components of a sensor. Strings are UTF-8.
 //!
 //! ```text
-//! /                        attrs: latdyn_version, command_line, backend, precision (str)
+//! /                        attrs: latdyn_version, command_line, backend, precision,
+//!                                 adapter (str; GPU adapter, empty on the CPU)
 //!                                 threads (int64), complete (int64, 0/1),
 //!                                 status (str: "running" | "complete" | "interrupted"),
 //!                                 format = "latdyn-campaign", format_version = 1 (int64)
@@ -91,6 +92,8 @@ pub struct CampaignMeta {
     pub model_source: String,
     pub backend: String,
     pub precision: String,
+    /// GPU adapter of the element stage ("name (backend, device type)"), empty on the CPU
+    pub adapter: String,
     pub threads: usize,
     pub parameter_names: Vec<String>,
     /// Per variant, one value per parameter name.
@@ -556,6 +559,8 @@ impl CampaignWriter {
         file.set_attr_string("backend", &m.backend)
             .map_err(h5("root attrs"))?;
         file.set_attr_string("precision", &m.precision)
+            .map_err(h5("root attrs"))?;
+        file.set_attr_string("adapter", &m.adapter)
             .map_err(h5("root attrs"))?;
         file.set_attr_numeric("threads", &(m.threads as i64))
             .map_err(h5("root attrs"))?;

@@ -34,6 +34,7 @@ fn meta() -> CampaignMeta {
         model_source: "# a beam\n[model]\nname = \"beam\" # ünïcode\n".into(),
         backend: "cpu".into(),
         precision: "f64".into(),
+        adapter: String::new(),
         threads: 2,
         parameter_names: vec!["E".into(), "L".into()],
         parameter_values: vec![vec![1e9, 2.0], vec![2e9, 3.0]],

@@ -47,6 +47,7 @@ fn write_campaign(path: &Path, omegas: &[f64], fail_last: bool) {
         model_source: "# rotor\n".into(),
         backend: "cpu".into(),
         precision: "f64".into(),
+        adapter: String::new(),
         threads: 1,
         parameter_names: vec!["omega".into(), "L".into()],
         parameter_values: omegas.iter().map(|&w| vec![w, 2.0]).collect(),

@@ -3,8 +3,10 @@
 
 pub mod ad;
 pub mod beam;
+pub mod stage;
 
 pub use beam::*;
+pub use stage::{CpuEval, ElemIn, ElemOut, ElementEval, EvalError};
 
 #[cfg(test)]
 mod tests;

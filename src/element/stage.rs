@@ -1,0 +1,108 @@
+//! The element stage: every element's arrays (internal force, tangent, strain energy, and
+//! when asked the mass matrix, quadratic-velocity vector and its velocity derivative) from
+//! gathered per-element inputs, behind one trait so the same assembly runs on the CPU
+//! functions of [`super::beam`] or on the WGSL kernels of `crate::gpu`.
+//!
+//! Inputs and outputs are flat per-element records, so a backend sees one contiguous batch
+//! per Newton iteration; the assembly gathers them before and scatters them after.
+
+use super::beam::{self, ElemData, ElemState, Mat12, Vec12, NDOF};
+
+/// Per-element input of the element stage.
+#[derive(Clone, Copy, Debug)]
+pub struct ElemIn {
+    pub state: ElemState,
+    /// nodal velocities (ẋ1, ω1, ẋ2, ω2) for the quadratic-velocity terms (zero in statics)
+    pub v12: Vec12,
+}
+
+/// Per-element output of the element stage. Every field is written on every call: the
+/// inertia fields are zero when inertia was not asked for.
+#[derive(Clone, Copy, Debug)]
+pub struct ElemOut {
+    pub f: Vec12,
+    pub k: Mat12,
+    pub energy: f64,
+    pub m: Mat12,
+    pub s: Vec12,
+    pub c: Mat12,
+}
+
+impl Default for ElemOut {
+    fn default() -> Self {
+        ElemOut {
+            f: [0.0; NDOF],
+            k: [[0.0; NDOF]; NDOF],
+            energy: 0.0,
+            m: [[0.0; NDOF]; NDOF],
+            s: [0.0; NDOF],
+            c: [[0.0; NDOF]; NDOF],
+        }
+    }
+}
+
+/// Error of an element-stage backend (a lost GPU device, a failed dispatch).
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("element evaluation on {backend}: {message}")]
+pub struct EvalError {
+    pub backend: String,
+    pub message: String,
+}
+
+/// One element stage: `out[i]` from `elems[i]` and `inputs[i]` for every i. `inertia`
+/// asks for M, S, C as well. Implementations must write every field of every output.
+pub trait ElementEval: Send + Sync {
+    fn evaluate(
+        &self,
+        elems: &[ElemData],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<(), EvalError>;
+    /// short name for logs and metadata, e.g. "cpu" or "gpu:llvmpipe f32"
+    fn name(&self) -> String;
+}
+
+/// The reference: the CPU element functions, f64.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CpuEval;
+
+impl CpuEval {
+    /// One element, exactly the calls the assembly made before the stage existed (so
+    /// results are bit-identical to them).
+    #[inline]
+    pub fn one(e: &ElemData, i: &ElemIn, inertia: bool, o: &mut ElemOut) {
+        let (f, k) = beam::internal_force_tangent(e, &i.state);
+        o.f = f;
+        o.k = k;
+        o.energy = beam::strain_energy(e, &i.state);
+        if inertia {
+            let (m, s, c) = beam::inertia(e, &i.state, &i.v12);
+            o.m = m;
+            o.s = s;
+            o.c = c;
+        } else {
+            o.m = [[0.0; NDOF]; NDOF];
+            o.s = [0.0; NDOF];
+            o.c = [[0.0; NDOF]; NDOF];
+        }
+    }
+}
+
+impl ElementEval for CpuEval {
+    fn evaluate(
+        &self,
+        elems: &[ElemData],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<(), EvalError> {
+        for ((e, i), o) in elems.iter().zip(inputs).zip(out.iter_mut()) {
+            CpuEval::one(e, i, inertia, o);
+        }
+        Ok(())
+    }
+    fn name(&self) -> String {
+        "cpu".into()
+    }
+}

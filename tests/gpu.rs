@@ -1,0 +1,455 @@
+//! The WGSL element kernels against their CPU twins (src/element/beam.rs), on every
+//! adapter this machine has and in every precision it supports; then whole simulations
+//! with the GPU element stage against the CPU path.
+//!
+//! Without an adapter each test prints `SKIPPED <name>: no adapter` (on the real stderr,
+//! past the test harness's capture) and returns; with `LATDYN_REQUIRE_GPU=1` (set by
+//! .ci/run, which installs the Vulkan software driver) it fails instead, so CI cannot pass
+//! GPU tests that never ran.
+//!
+//! Errors are normwise per array: max|gpu − cpu| / max|cpu| over the entries of f, K, M,
+//! S or C of one element (entry-wise relative errors of entries that are zero up to
+//! round-off mean nothing).
+
+mod common;
+
+use std::io::Write;
+use std::sync::{Arc, Mutex};
+
+use latdyn::element::{CpuEval, ElemData, ElemIn, ElemOut, ElemState, ElementEval, EvalError};
+use latdyn::gpu::{self, GpuContext, Precision};
+use latdyn::math::*;
+use latdyn::model::BeamProps;
+
+/// Adapters to test on, or none after reporting the skip (or failing under
+/// LATDYN_REQUIRE_GPU=1).
+fn adapters_or_skip(test: &str) -> Vec<(wgpu::Adapter, gpu::AdapterSummary)> {
+    let list = gpu::adapters();
+    if list.is_empty() {
+        if std::env::var("LATDYN_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+            panic!("{test}: no GPU adapter, and LATDYN_REQUIRE_GPU=1 forbids skipping");
+        }
+        let _ = writeln!(std::io::stderr(), "SKIPPED {test}: no adapter");
+    }
+    list
+}
+
+/// (context, label) for every adapter × supported precision.
+fn contexts(test: &str) -> Vec<GpuContext> {
+    let mut out = Vec::new();
+    for (a, s) in adapters_or_skip(test) {
+        let precisions: &[Precision] = if s.shader_f64 {
+            &[Precision::F32, Precision::F64]
+        } else {
+            &[Precision::F32]
+        };
+        for &p in precisions {
+            // a fresh adapter handle per device: wgpu adapters are cheap clones
+            match GpuContext::new(a.clone(), s.clone(), p) {
+                Ok(c) => out.push(c),
+                Err(e) => panic!("{test}: {} {}: {e}", s.label(), p.as_str()),
+            }
+        }
+    }
+    out
+}
+
+/// xorshift64*: reproducible random numbers without a dependency
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        ((self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64) / (1u64 << 53) as f64
+    }
+    fn sym(&mut self, a: f64) -> f64 {
+        a * (2.0 * self.next() - 1.0)
+    }
+    fn vec(&mut self, a: f64) -> Vec3 {
+        [self.sym(a), self.sym(a), self.sym(a)]
+    }
+    /// log-uniform in [lo, hi]
+    fn log(&mut self, lo: f64, hi: f64) -> f64 {
+        (lo.ln() + self.next() * (hi.ln() - lo.ln())).exp()
+    }
+}
+
+/// A random element in a random large rigid motion (rotation up to π about a random
+/// axis, reference coordinates up to 1e3 m, so displacements are large) plus a small
+/// deformation: strain up to `strain`, node rotations up to `strain` rad against the
+/// rigid motion, nodal velocities up to 10 m/s and 10 rad/s.
+fn random_element(rng: &mut Rng, strain: f64) -> (ElemData, ElemIn) {
+    let props = BeamProps {
+        ea: rng.log(1e5, 1e8),
+        eiy: rng.log(1e1, 1e4),
+        eiz: rng.log(1e1, 1e4),
+        gj: rng.log(1e1, 1e4),
+        rho_a: rng.log(0.1, 10.0),
+        rho_iy: rng.log(1e-6, 1e-2),
+        rho_iz: rng.log(1e-6, 1e-2),
+    };
+    let l0 = rng.log(0.1, 3.0);
+    let frame0 = rot_exp(rng.vec(3.0));
+    let x1_0 = rng.vec(1e3);
+    let chord0 = scale(col(&frame0, 0), l0);
+    let x2_0 = add(x1_0, chord0);
+    let e = ElemData::new(props, frame0, x1_0, x2_0);
+    let r = rot_exp(scale(
+        normalize(rng.vec(1.0)),
+        rng.next() * std::f64::consts::PI,
+    ));
+    let c = rng.vec(1e3);
+    let x1 = add(mat_vec(&r, x1_0), c);
+    let x2 = add(
+        mat_vec(&r, add(add(x1_0, chord0), scale(rng.vec(1.0), strain * l0))),
+        c,
+    );
+    let state = ElemState {
+        u1: sub(x1, x1_0),
+        r1: mat_mul(&r, &rot_exp(rng.vec(strain))),
+        u2: sub(x2, x2_0),
+        r2: mat_mul(&r, &rot_exp(rng.vec(strain))),
+    };
+    let mut v12 = [0.0; 12];
+    for v in v12.iter_mut() {
+        *v = rng.sym(10.0);
+    }
+    (e, ElemIn { state, v12 })
+}
+
+/// Worst relative errors over a batch: [f, K, energy, M, S, C], normwise: max|gpu − cpu|
+/// over the element's array divided by max|cpu|. f and the energy can vanish (an
+/// undeformed element: the CPU's f is then round-off), so their scale has a floor: the
+/// force of a strain `eps` (the kernel scalar's unit round-off), max|K|·L0·eps, and
+/// that force times L0 for the energy; a state is known to the kernel only to that
+/// strain once rounded to its precision.
+fn errors(
+    elems: &[ElemData],
+    cpu: &[ElemOut],
+    gpu: &[ElemOut],
+    eps: f64,
+) -> ([f64; 6], [usize; 6]) {
+    fn maxabs<'a>(a: impl Iterator<Item = &'a f64>) -> f64 {
+        a.fold(0.0f64, |m, x| m.max(x.abs()))
+    }
+    fn diff<'a>(a: impl Iterator<Item = &'a f64>, b: impl Iterator<Item = &'a f64>) -> f64 {
+        a.zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    }
+    let rel = |d: f64, s: f64| if s == 0.0 { d } else { d / s };
+    let mut w = [0.0f64; 6];
+    let mut at = [0usize; 6];
+    for (ie, ((e, c), g)) in elems.iter().zip(cpu).zip(gpu).enumerate() {
+        let kmax = maxabs(c.k.iter().flatten());
+        let floor = kmax * e.l0 * eps;
+        let fscale = maxabs(c.f.iter()).max(floor);
+        let escale = c.energy.abs().max(floor * e.l0);
+        let err = [
+            rel(diff(c.f.iter(), g.f.iter()), fscale),
+            rel(diff(c.k.iter().flatten(), g.k.iter().flatten()), kmax),
+            rel((c.energy - g.energy).abs(), escale),
+            rel(
+                diff(c.m.iter().flatten(), g.m.iter().flatten()),
+                maxabs(c.m.iter().flatten()),
+            ),
+            rel(diff(c.s.iter(), g.s.iter()), maxabs(c.s.iter())),
+            rel(
+                diff(c.c.iter().flatten(), g.c.iter().flatten()),
+                maxabs(c.c.iter().flatten()),
+            ),
+        ];
+        for i in 0..6 {
+            if err[i] > w[i] {
+                w[i] = err[i];
+                at[i] = ie;
+            }
+        }
+    }
+    (w, at)
+}
+
+const FIELDS: [&str; 6] = ["f", "K", "energy", "M", "S", "C"];
+
+/// f64 kernels: the same formulas in the same order as the CPU, so only the rounding of
+/// fused multiply-adds and of the shader compiler's reassociation differs: 1e-12 of each
+/// array's largest entry leaves three orders of magnitude for the tangent's and the
+/// mass matrix's dual-number cancellations.
+const F64_TOL: f64 = 1e-12;
+
+/// f32 kernels on co-rotated inputs (see `corotate` in src/gpu/mod.rs): the inputs are
+/// the deformation itself (chord change, near-identity frames), rounded once to f32, so
+/// every deformation measure carries a relative error of order eps32 = 6e-8 per
+/// operation on its path; the deepest paths (hyper-dual kinematics, then the 4-point
+/// quadrature of products of gradients) are ~150 operations long, so a linear worst
+/// case is 150·eps32 ≈ 1e-5. No cancellation is left to amplify it: that is what the
+/// co-rotated upload removed (without it a rigid rotation left an absolute eps32 on
+/// every angle, and the chord change of an element 1e3 m from the origin lost all its
+/// digits). Measured worst cases (README "GPU backend"): 2e-6 over 4096 random states,
+/// within the bound.
+const F32_TOL: [f64; 6] = [1e-5; 6];
+
+/// One context per adapter × precision for the whole test binary: compiling the
+/// kernels on a software adapter takes seconds, so the tests share them.
+fn shared_contexts(test: &str) -> &'static [Mutex<GpuContext>] {
+    static CTXS: std::sync::OnceLock<Vec<Mutex<GpuContext>>> = std::sync::OnceLock::new();
+    if adapters_or_skip(test).is_empty() {
+        return &[];
+    }
+    CTXS.get_or_init(|| contexts(test).into_iter().map(Mutex::new).collect())
+}
+
+fn check_batch(
+    test: &str,
+    ctx: &mut GpuContext,
+    elems: &[ElemData],
+    inputs: &[ElemIn],
+) -> [f64; 6] {
+    let n = elems.len();
+    let mut cpu = vec![ElemOut::default(); n];
+    CpuEval.evaluate(elems, inputs, true, &mut cpu).unwrap();
+    let mut out = vec![ElemOut::default(); n];
+    ctx.evaluate(elems, inputs, true, &mut out)
+        .unwrap_or_else(|e| panic!("{test}: {e}"));
+    let eps = match ctx.precision {
+        Precision::F64 => f64::EPSILON / 2.0,
+        Precision::F32 => f32::EPSILON as f64 / 2.0,
+    };
+    let (err, at) = errors(elems, &cpu, &out, eps);
+    let tol = match ctx.precision {
+        Precision::F64 => [F64_TOL; 6],
+        Precision::F32 => F32_TOL,
+    };
+    let _ = writeln!(
+        std::io::stderr(),
+        "{test}: {} {} corotate={} n={n}: {}",
+        ctx.adapter.label(),
+        ctx.precision.as_str(),
+        ctx.corotate,
+        FIELDS
+            .iter()
+            .zip(err)
+            .map(|(f, e)| format!("{f} {e:.2e}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for i in 0..6 {
+        if err[i] > tol[i] {
+            let j = at[i];
+            let _ = writeln!(
+                std::io::stderr(),
+                "worst element for {}: {:?}\n{:?}\ncpu f {:?}\ngpu f {:?}\ncpu s {:?}\ngpu s {:?}",
+                FIELDS[i], elems[j], inputs[j], cpu[j].f, out[j].f, cpu[j].s, out[j].s
+            );
+        }
+        assert!(
+            err[i] <= tol[i],
+            "{test}: {} {}: {} error {:.3e} above {:.1e}",
+            ctx.adapter.label(),
+            ctx.precision.as_str(),
+            FIELDS[i],
+            err[i],
+            tol[i]
+        );
+    }
+    // without inertia the kernel must still overwrite M, S, C (with zeros), as the CPU
+    let mut out2 = vec![ElemOut::default(); n];
+    for o in out2.iter_mut() {
+        o.m[0][0] = f64::NAN;
+        o.s[3] = f64::NAN;
+    }
+    ctx.evaluate(elems, inputs, false, &mut out2).unwrap();
+    assert!(out2.iter().all(|o| o.m[0][0] == 0.0 && o.s[3] == 0.0));
+    err
+}
+
+#[test]
+fn kernels_match_cpu_on_4096_random_large_motion_small_strain_states() {
+    let test = "kernels_match_cpu_on_4096_random_large_motion_small_strain_states";
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let (elems, inputs): (Vec<_>, Vec<_>) = (0..4096)
+        .map(|i| random_element(&mut rng, [1e-3, 1e-4, 1e-5][i % 3]))
+        .unzip();
+    for ctx in shared_contexts(test) {
+        check_batch(test, &mut ctx.lock().unwrap(), &elems, &inputs);
+    }
+}
+
+#[test]
+fn f64_kernels_match_cpu_with_the_corotated_upload_too() {
+    // the f32 path's host-side change of frame is exact algebra; checked tightly in f64
+    let test = "f64_kernels_match_cpu_with_the_corotated_upload_too";
+    let mut rng = Rng(42);
+    let (elems, inputs): (Vec<_>, Vec<_>) =
+        (0..1024).map(|_| random_element(&mut rng, 1e-3)).unzip();
+    for ctx in shared_contexts(test) {
+        let mut ctx = ctx.lock().unwrap();
+        if ctx.precision == Precision::F64 {
+            ctx.corotate = true;
+            check_batch(test, &mut ctx, &elems, &inputs);
+            ctx.corotate = false;
+        }
+    }
+}
+
+/// Records every element batch the solver evaluates (on the CPU).
+struct Recorder {
+    seen: Mutex<(Vec<ElemData>, Vec<ElemIn>)>,
+}
+impl ElementEval for Recorder {
+    fn evaluate(
+        &self,
+        elems: &[ElemData],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<(), EvalError> {
+        let mut g = self.seen.lock().unwrap();
+        if g.1.len() < 20_000 {
+            g.0.extend_from_slice(elems);
+            g.1.extend_from_slice(inputs);
+        }
+        CpuEval.evaluate(elems, inputs, inertia, out)
+    }
+    fn name(&self) -> String {
+        "recorder".into()
+    }
+}
+
+#[test]
+fn kernels_match_cpu_on_the_states_of_real_simulations() {
+    let test = "kernels_match_cpu_on_the_states_of_real_simulations";
+    let ctxs = shared_contexts(test);
+    if ctxs.is_empty() {
+        return;
+    }
+    let rec = Arc::new(Recorder {
+        seen: Mutex::new((Vec::new(), Vec::new())),
+    });
+    for (file, sets) in [
+        (
+            "rotating_cantilever.toml",
+            vec![("t_end", 1.0), ("omega", 8.0)],
+        ),
+        ("flapping_blade.toml", vec![("t_end", 0.5)]),
+    ] {
+        let m = common::shipped(file, &sets);
+        latdyn::assembly::with_evaluator(rec.clone(), || {
+            let (_, _, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
+            assert!(err.is_none(), "{file}: {err:?}");
+        });
+    }
+    let (elems, inputs) = rec.seen.lock().unwrap().clone();
+    for ctx in ctxs {
+        check_batch(test, &mut ctx.lock().unwrap(), &elems, &inputs);
+    }
+}
+
+/// The rotating-beam campaign of the README (Ω̄ = 0, 5, 10, flapwise tip impulse, 12 s)
+/// with every variant's element stage on one shared GPU batcher, against the CPU path.
+fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> Vec<latdyn::ensemble::Outcome> {
+    use latdyn::ensemble::{self, Campaign};
+    let c = Campaign {
+        model_path: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("models/rotating_cantilever.toml"),
+        base: vec![],
+        variants: [0.0, 5.0, 10.0]
+            .iter()
+            .map(|w| vec![("omega".to_string(), *w)])
+            .collect(),
+        threads,
+        output: None,
+        shard: None,
+        frequency_sensor: Some(("tip_flap".into(), 0)),
+        command_line: "test".into(),
+    };
+    let mut p = ensemble::prepare(&c).unwrap();
+    for m in p.models.iter_mut() {
+        m.solver.tol = gpu::newton_tol(m.solver.tol, &stage.precision);
+    }
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    ensemble::run_on(&c, &p, &stop, false, &|_, _| {}, stage).unwrap()
+}
+
+#[test]
+fn rotating_beam_sweep_on_the_gpu_gives_the_cpu_frequencies_and_sensors() {
+    let test = "rotating_beam_sweep_on_the_gpu_gives_the_cpu_frequencies_and_sensors";
+    let list = adapters_or_skip(test);
+    if list.is_empty() {
+        return;
+    }
+    let cpu = sweep(&latdyn::ensemble::Stage::cpu(), 2);
+    // one adapter per precision: the preferred one (what `--backend gpu` would take)
+    for p in [Precision::F32, Precision::F64] {
+        let ctx = match GpuContext::open(p, true) {
+            Ok(c) => c,
+            Err(gpu::GpuError::NoF64(_)) => {
+                let _ = writeln!(
+                    std::io::stderr(),
+                    "{test}: no f64 adapter, f64 part not run"
+                );
+                continue;
+            }
+            Err(e) => panic!("{test}: {e}"),
+        };
+        let label = format!("{} {}", ctx.adapter.label(), p.as_str());
+        let batcher = gpu::batch::Batcher::start(ctx, std::time::Duration::from_millis(2));
+        let b2 = batcher.clone();
+        let stage = latdyn::ensemble::Stage {
+            backend: "gpu".into(),
+            precision: p.as_str().into(),
+            adapter: label.clone(),
+            make: Some(Arc::new(move || b2.client() as Arc<dyn ElementEval>)),
+        };
+        let t0 = std::time::Instant::now();
+        let out = sweep(&stage, 3);
+        let st = batcher.stats();
+        let _ = writeln!(
+            std::io::stderr(),
+            "{test}: {label}: {:.1} s, {} rounds, {:.2} requests per round",
+            t0.elapsed().as_secs_f64(),
+            st.rounds,
+            st.requests as f64 / st.rounds.max(1) as f64
+        );
+        for (c, g) in cpu.iter().zip(&out) {
+            assert_eq!(
+                g.state,
+                latdyn::output::VariantState::Completed,
+                "{label}: {}",
+                g.message
+            );
+            let fc = c.derived[0].1;
+            let fg = g.derived[0].1;
+            let ef = ((fg - fc) / fc).abs();
+            // sensors: largest difference over min, max, final of every component,
+            // relative to the sensor's own range
+            let mut es = 0.0f64;
+            for (sc, sg) in c.sensors.iter().zip(&g.sensors) {
+                let range = sc
+                    .max
+                    .iter()
+                    .zip(&sc.min)
+                    .fold(0.0f64, |m, (a, b)| m.max(a.abs()).max(b.abs()));
+                for (a, b) in [(&sc.min, &sg.min), (&sc.max, &sg.max), (&sc.last, &sg.last)] {
+                    for (x, y) in a.iter().zip(b.iter()) {
+                        if range > 0.0 {
+                            es = es.max((x - y).abs() / range);
+                        }
+                    }
+                }
+            }
+            let _ = writeln!(
+                std::io::stderr(),
+                "{test}: {label}: {:?}: first flap {fg:.6} Hz vs CPU {fc:.6} Hz (rel {ef:.2e}), sensors rel {es:.2e}",
+                c.parameters
+            );
+            match p {
+                // f64: the same arithmetic up to fused multiply-adds, over 1200 steps
+                Precision::F64 => assert!(es < 1e-9, "{label}: sensors differ by {es:.2e}"),
+                // f32: element arrays to ~1e-5 (see F32_TOL) perturb the Newton
+                // residual, not the converged physics beyond that; the frequency comes
+                // from the FFT peak refined by least squares, 1e-4 is 10× the measured
+                Precision::F32 => assert!(ef < 1e-4, "{label}: frequency differs by {ef:.2e}"),
+            }
+        }
+    }
+}
