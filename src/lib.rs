@@ -11,6 +11,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
+pub mod bench;
 pub mod element;
 pub mod ensemble;
 pub mod gpu;

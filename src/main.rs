@@ -38,22 +38,32 @@ enum Verb {
     Sweep(SweepArgs),
     /// Plot sensor histories of a results file
     Plot(PlotArgs),
-    /// Time the stages of a run
-    Bench(ModelArgs),
+    /// The speed-against-error suite: reference problems at several resolutions, wall
+    /// time beside error, ensemble throughput; writes docs/bench/results.{md,json,svg}
+    Bench(BenchArgs),
 }
 
-impl Verb {
-    fn name(&self) -> &'static str {
-        match self {
-            Verb::Check(_) => "check",
-            Verb::Statics(_) => "statics",
-            Verb::Modes(_) => "modes",
-            Verb::Run(_) => "run",
-            Verb::Sweep(_) => "sweep",
-            Verb::Plot(_) => "plot",
-            Verb::Bench(_) => "bench",
-        }
-    }
+#[derive(Args)]
+struct BenchArgs {
+    /// shorter ladders and at most 100 ensemble variants (a few minutes)
+    #[arg(long)]
+    quick: bool,
+    /// run only these problems (repeatable): rotating_cantilever, rollup, bend45, spinup,
+    /// minimast, ensemble
+    #[arg(long = "only", value_name = "PROBLEM")]
+    only: Vec<String>,
+    /// directory of the shipped models
+    #[arg(long, default_value = "models")]
+    models: PathBuf,
+    /// where results.md, results.json and work_precision.png go
+    #[arg(long, default_value = "docs/bench")]
+    out: PathBuf,
+    /// threads for the ensemble rows (default: all cores)
+    #[arg(long)]
+    threads: Option<usize>,
+    /// print the report object as JSON on stdout
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -241,7 +251,7 @@ fn main() -> ExitCode {
         Verb::Run(a) => run(a),
         Verb::Sweep(a) => sweep(a),
         Verb::Plot(a) => plot(a),
-        other => run_verb(other),
+        Verb::Bench(a) => bench(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -252,25 +262,62 @@ fn main() -> ExitCode {
     }
 }
 
-/// The analysis verbs; not part of this build yet.
-fn run_verb(verb: &Verb) -> anyhow::Result<()> {
-    // a broken model is worth reporting even where the verb itself is missing
-    match verb {
-        Verb::Statics(a) | Verb::Bench(a) => {
-            a.load()?;
-        }
-        Verb::Modes(a) => {
-            a.model.load()?;
-        }
-        Verb::Run(a) => {
-            a.model.load()?;
-        }
-        Verb::Sweep(a) => {
-            a.model.load()?;
-        }
-        Verb::Check(_) | Verb::Plot(_) => {}
+/// The speed-against-error suite (src/bench.rs); the report files are written even when
+/// `--json` prints the report.
+fn bench(args: &BenchArgs) -> anyhow::Result<()> {
+    use latdyn::bench;
+    let threads = args.threads.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    if threads == 0 {
+        return Err(anyhow!("--threads: must be at least 1"));
     }
-    Err(anyhow!("verb {}: not available in this build", verb.name()))
+    if !args.models.is_dir() {
+        return Err(anyhow!(
+            "{}: --models: not a directory (run from the repository root or pass --models)",
+            args.models.display()
+        ));
+    }
+    let opts = bench::BenchOptions {
+        models: args.models.clone(),
+        quick: args.quick,
+        only: args.only.clone(),
+        threads,
+    };
+    std::fs::create_dir_all(&args.out).map_err(|e| {
+        anyhow!(
+            "{}: --out: cannot create the directory: {e}",
+            args.out.display()
+        )
+    })?;
+    let report = bench::run_suite(&opts, &|line| eprintln!("{line}"))?;
+    let command = std::env::args()
+        .skip(1)
+        .fold("latdyn".to_string(), |a, b| a + " " + &b);
+    let svg = args.out.join("work_precision.png");
+    let has_runs = report.problems.iter().any(|p| !p.runs.is_empty());
+    if has_runs {
+        bench::plot(&report, &svg)?;
+    }
+    let md = bench::markdown(&report, &command, has_runs.then_some("work_precision.png"));
+    let write = |name: &str, text: &str| {
+        let p = args.out.join(name);
+        std::fs::write(&p, text).map_err(|e| anyhow!("{}: cannot write: {e}", p.display()))
+    };
+    write("results.md", &md)?;
+    let json = serde_json::to_string_pretty(&report)?;
+    write("results.json", &json)?;
+    eprintln!(
+        "wrote {} (and results.json{})",
+        args.out.join("results.md").display(),
+        if has_runs { ", work_precision.png" } else { "" }
+    );
+    if args.json {
+        emit(&format!("{json}\n"))?;
+    }
+    Ok(())
 }
 
 /// Chart a results file: time histories, a cross plot or a Campbell diagram.

@@ -911,6 +911,44 @@ pub fn plot_sensors(
     finish(fig, format, opts.size, out, summary)
 }
 
+/// Work-precision chart: error against cost on log-log axes, one line with markers per
+/// configuration (points in the order given). Non-positive values cannot be drawn on a
+/// log axis and are left out (a zero error is reported in the table instead).
+pub fn plot_work_precision(
+    curves: &[(String, Vec<(f64, f64)>)],
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    size: (u32, u32),
+    out: &Path,
+) -> Result<PlotSummary, PlotError> {
+    let format = ImageFormat::from_path(out)?;
+    let lines = curves
+        .iter()
+        .enumerate()
+        .map(|(i, (label, pts))| Line {
+            label: label.clone(),
+            points: pts
+                .iter()
+                .filter(|(x, y)| *x > 0.0 && *y > 0.0)
+                .map(|(x, y)| (x.log10(), y.log10()))
+                .collect(),
+            color: i,
+            markers: true,
+            dashed: false,
+        })
+        .collect();
+    let fig = Figure {
+        title: title.to_string(),
+        x_label: x_label.to_string(),
+        y_label: y_label.to_string(),
+        lines,
+        log_axes: true,
+        ..Default::default()
+    };
+    finish(fig, format, size, out, PlotSummary::default())
+}
+
 /// One sensor component against another (phase or cross plot), one line per variant.
 pub fn plot_phase(
     c: &Campaign,
@@ -1190,6 +1228,8 @@ struct Figure {
     start_markers: bool,
     x_range: Option<(f64, f64)>,
     y_range: Option<(f64, f64)>,
+    /// The points are log10 of the data: ticks read 10^v.
+    log_axes: bool,
 }
 
 /// Line colours: Tableau 10, then darker variants.
@@ -1343,6 +1383,21 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> Resu
     let y_range = fig.y_range.unwrap_or_else(|| {
         padded_range(fig.lines.iter().flat_map(|l| l.points.iter().map(|p| p.1)))
     });
+    let log = fig.log_axes;
+    // log ticks fall between decades too: two significant digits read better there
+    let tick = |v: f64| {
+        if log {
+            let x = 10f64.powf(v);
+            let digits = (1 - x.log10().floor() as i32).max(0) as usize;
+            if (1e-3..1e5).contains(&x) {
+                trim_zeros(&format!("{x:.digits$}"))
+            } else {
+                format!("{x:.1e}")
+            }
+        } else {
+            fmt_tick(v)
+        }
+    };
     let mut chart = ChartBuilder::on(root)
         .caption(&fig.title, ("sans-serif", 1.3 * fs).into_font())
         .margin(fsi)
@@ -1356,8 +1411,8 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> Resu
         .y_desc(fig.y_label.as_str())
         .axis_desc_style(("sans-serif", fs).into_font())
         .label_style(("sans-serif", 0.85 * fs).into_font())
-        .x_label_formatter(&|v| fmt_tick(*v))
-        .y_label_formatter(&|v| fmt_tick(*v))
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
         .max_light_lines(4)
         .light_line_style(RGBColor(238, 238, 238))
         .bold_line_style(RGBColor(200, 200, 200))

@@ -1,0 +1,878 @@
+//! `latdyn bench`: the speed-against-error suite. Fixed reference problems, each run at a
+//! ladder of resolutions (elements per beam and time step refined together, for two
+//! values of the generalized-α ρ∞), each run recording wall time, steps, Newton
+//! iterations, rejected steps and its error against the problem's reference; plus the
+//! ensemble throughput of the blade campaign. The report goes to Markdown, JSON and a
+//! work-precision plot (error against wall time, log-log, one curve per configuration).
+//!
+//! References: the rotating cantilever's Ω̄ = 5 frequency from an independent Hermite
+//! finite-element eigenproblem written here (checked against the published table at
+//! Ω̄ = 4 and 6); the roll-up from its closed form; the 45° bend from the published
+//! converged answer; the spin-up beam and the Mini-Mast bay against the finest latdyn
+//! run of the same model (self-convergence references, labelled as such).
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::ensemble::{self, Campaign};
+use crate::model::{load, Model};
+use crate::solver::{self, dynamics};
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// the directory holding the shipped models
+    pub models: PathBuf,
+    /// short ladders and at most 100 ensemble variants (minutes instead of a quarter hour)
+    pub quick: bool,
+    /// problem names to run (empty: all)
+    pub only: Vec<String>,
+    /// threads for the ensemble rows
+    pub threads: usize,
+}
+
+/// The problem names, in report order.
+pub const PROBLEMS: [&str; 6] = [
+    "rotating_cantilever",
+    "rollup",
+    "bend45",
+    "spinup",
+    "minimast",
+    "ensemble",
+];
+
+/// One run of a ladder.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRun {
+    /// the curve this run belongs to (e.g. "ρ∞ = 0.6")
+    pub config: String,
+    pub elements: usize,
+    /// time step [s] (None for statics)
+    pub dt: Option<f64>,
+    pub rho_inf: Option<f64>,
+    /// load + compile + solve, one thread
+    pub wall_s: f64,
+    /// time steps (statics: load steps)
+    pub steps: usize,
+    pub newton_iterations: usize,
+    pub rejected_steps: usize,
+    pub value: f64,
+    /// |value − reference| / |reference| (roll-up: the gap over L, reference 0)
+    pub error: f64,
+}
+
+/// One reference problem and its runs.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchProblem {
+    pub name: String,
+    pub title: String,
+    pub quantity: String,
+    pub unit: String,
+    pub reference: f64,
+    /// where the reference comes from
+    pub reference_source: String,
+    pub runs: Vec<BenchRun>,
+}
+
+/// One ensemble row.
+#[derive(Clone, Debug, Serialize)]
+pub struct ThroughputRow {
+    pub variants: usize,
+    pub threads: usize,
+    pub wall_s: f64,
+    pub variant_steps: usize,
+    pub variant_steps_per_s: f64,
+    /// campaign wall × threads / variants over the same variants run alone, one by one
+    pub cost_per_variant_vs_alone: f64,
+    /// shares of the summed per-variant time
+    pub element_assembly_share: f64,
+    pub factorization_share: f64,
+    pub output_share: f64,
+    /// largest difference of sensor min/max/final between the campaign and the same
+    /// variants run alone (sampled variants); 0 means bit-identical
+    pub max_difference_vs_alone: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    pub latdyn_version: String,
+    pub machine: String,
+    pub quick: bool,
+    pub wall_s: f64,
+    pub problems: Vec<BenchProblem>,
+    pub throughput: Vec<ThroughputRow>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("unknown benchmark problem '{0}' (known: {known})", known = PROBLEMS.join(", "))]
+    UnknownProblem(String),
+    #[error("{problem}: {message}")]
+    Run { problem: String, message: String },
+}
+
+fn run_err(problem: &str, message: impl std::fmt::Display) -> BenchError {
+    BenchError::Run {
+        problem: problem.to_string(),
+        message: message.to_string(),
+    }
+}
+
+/// Run the suite; `log` receives one line per run (for stderr).
+pub fn run_suite(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchReport, BenchError> {
+    for p in &opts.only {
+        if !PROBLEMS.contains(&p.as_str()) {
+            return Err(BenchError::UnknownProblem(p.clone()));
+        }
+    }
+    let wanted = |p: &str| opts.only.is_empty() || opts.only.iter().any(|o| o == p);
+    let t0 = Instant::now();
+    let mut problems = Vec::new();
+    if wanted("rotating_cantilever") {
+        problems.push(rotating_cantilever(opts, log)?);
+    }
+    if wanted("rollup") {
+        problems.push(rollup(opts, log)?);
+    }
+    if wanted("bend45") {
+        problems.push(bend45(opts, log)?);
+    }
+    if wanted("spinup") {
+        problems.push(spinup(opts, log)?);
+    }
+    if wanted("minimast") {
+        problems.push(minimast(opts, log)?);
+    }
+    let throughput = if wanted("ensemble") {
+        ensemble_throughput(opts, log)?
+    } else {
+        Vec::new()
+    };
+    Ok(BenchReport {
+        latdyn_version: env!("CARGO_PKG_VERSION").to_string(),
+        machine: machine(),
+        quick: opts.quick,
+        wall_s: t0.elapsed().as_secs_f64(),
+        problems,
+        throughput,
+    })
+}
+
+/// CPU model and core count, for the report header.
+fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    format!("{cpu}, {cores} cores, {}", std::env::consts::OS)
+}
+
+fn model(
+    opts: &BenchOptions,
+    problem: &str,
+    file: &str,
+    sets: &[(&str, f64)],
+) -> Result<Model, BenchError> {
+    let o: Vec<(String, f64)> = sets.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+    load(&opts.models.join(file), &o).map_err(|e| run_err(problem, e))
+}
+
+/// A transient run of `file` with `sets`; returns the history and the run's counters.
+fn transient(
+    opts: &BenchOptions,
+    problem: &str,
+    file: &str,
+    sets: &[(&str, f64)],
+) -> Result<(Model, dynamics::History, dynamics::RunStats, f64), BenchError> {
+    let t0 = Instant::now();
+    let m = model(opts, problem, file, sets)?;
+    let (h, stats, err) = dynamics::run(&m, |_, _| {});
+    let wall = t0.elapsed().as_secs_f64();
+    if let Some(e) = err {
+        return Err(run_err(problem, format!("{sets:?}: {e}")));
+    }
+    Ok((m, h, stats, wall))
+}
+
+fn component(
+    m: &Model,
+    h: &dynamics::History,
+    problem: &str,
+    sensor: &str,
+) -> Result<Vec<Vec<f64>>, BenchError> {
+    let k = m
+        .sensor_index(sensor)
+        .ok_or_else(|| run_err(problem, format!("the model has no sensor '{sensor}'")))?;
+    Ok(h.values[k].clone())
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+/// (elements, dt) refined together; the runs use each for every ρ∞ in `rho`.
+struct Ladder {
+    steps: Vec<(usize, f64)>,
+    rho: Vec<f64>,
+}
+
+fn ladder_runs(
+    problem: &str,
+    ladder: &Ladder,
+    reference: f64,
+    log: &dyn Fn(&str),
+    mut one: impl FnMut(usize, f64, f64) -> Result<(f64, dynamics::RunStats, f64), BenchError>,
+) -> Result<Vec<BenchRun>, BenchError> {
+    let mut runs = Vec::new();
+    for &rho in &ladder.rho {
+        for &(n, dt) in &ladder.steps {
+            let (value, stats, wall) = one(n, dt, rho)?;
+            let run = BenchRun {
+                config: format!("ρ∞ = {rho}"),
+                elements: n,
+                dt: Some(dt),
+                rho_inf: Some(rho),
+                wall_s: wall,
+                steps: stats.steps,
+                newton_iterations: stats.newton_iterations,
+                rejected_steps: stats.rejected_steps,
+                value,
+                error: rel(value, reference),
+            };
+            log(&format!(
+                "{problem}: ρ∞ {rho}, {n} el, dt {dt}: {value:.6} (error {:.2e}), {wall:.2} s, {} steps, {} Newton",
+                run.error, run.steps, run.newton_iterations
+            ));
+            runs.push(run);
+        }
+    }
+    Ok(runs)
+}
+
+// ---------------------------------------------------------------------------------------
+// Rotating cantilever
+
+/// First flapwise ω̄ = ω·sqrt(ρA L⁴/EI) of a uniform cantilever clamped on the axis of a
+/// hub turning at Ω̄: the inextensible Euler–Bernoulli beam with the exact centrifugal
+/// tension T(x) = ρAΩ²(L² − x²)/2, `n` cubic Hermite elements, lowest eigenvalue of
+/// (K_b + K_T)φ = ω̄² Mφ by inverse iteration. Independent of latdyn's element (no
+/// co-rotation, no large rotation, no axial stretch).
+pub fn rotating_beam_reference(omega_bar: f64, n: usize) -> f64 {
+    let h = 1.0 / n as f64;
+    let ndof = 2 * n; // the root's two dofs are clamped
+    let mut k = vec![0.0; ndof * ndof];
+    let mut m = vec![0.0; ndof * ndof];
+    let gauss = [
+        (-0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
+        (-0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
+        (0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
+        (0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
+    ];
+    for e in 0..n {
+        let x0 = e as f64 * h;
+        let mut ke = [[0.0; 4]; 4];
+        let mut me = [[0.0; 4]; 4];
+        for (xi, w) in gauss {
+            let s = 0.5 * (xi + 1.0); // 0..1 along the element
+            let x = x0 + s * h;
+            let tension = 0.5 * omega_bar * omega_bar * (1.0 - x * x);
+            // Hermite shape functions, their slopes d/dx and curvatures d²/dx²
+            let nn = [
+                1.0 - 3.0 * s * s + 2.0 * s * s * s,
+                h * (s - 2.0 * s * s + s * s * s),
+                3.0 * s * s - 2.0 * s * s * s,
+                h * (-s * s + s * s * s),
+            ];
+            let d1 = [
+                (-6.0 * s + 6.0 * s * s) / h,
+                1.0 - 4.0 * s + 3.0 * s * s,
+                (6.0 * s - 6.0 * s * s) / h,
+                -2.0 * s + 3.0 * s * s,
+            ];
+            let d2 = [
+                (-6.0 + 12.0 * s) / (h * h),
+                (-4.0 + 6.0 * s) / h,
+                (6.0 - 12.0 * s) / (h * h),
+                (-2.0 + 6.0 * s) / h,
+            ];
+            let jw = 0.5 * h * w;
+            for a in 0..4 {
+                for b in 0..4 {
+                    ke[a][b] += jw * (d2[a] * d2[b] + tension * d1[a] * d1[b]);
+                    me[a][b] += jw * nn[a] * nn[b];
+                }
+            }
+        }
+        for a in 0..4 {
+            for b in 0..4 {
+                // element dofs 2e..2e+4 in the unclamped numbering; shift by the root's 2
+                let (ga, gb) = (2 * e + a, 2 * e + b);
+                if ga < 2 || gb < 2 {
+                    continue;
+                }
+                k[(ga - 2) * ndof + gb - 2] += ke[a][b];
+                m[(ga - 2) * ndof + gb - 2] += me[a][b];
+            }
+        }
+    }
+    // inverse iteration: x ← K⁻¹ M x converges to the lowest mode at the rate
+    // (ω₁/ω₂)² < 0.1, so 40 iterations reach round-off
+    use faer::linalg::solvers::Solve;
+    let lu = faer::Mat::from_fn(ndof, ndof, |i, j| k[i * ndof + j]).full_piv_lu();
+    let mut x = faer::Mat::from_fn(ndof, 1, |i, _| (i % 2 == 0) as u8 as f64 * (i + 1) as f64);
+    let mut lambda = 0.0;
+    let mm = faer::Mat::from_fn(ndof, ndof, |i, j| m[i * ndof + j]);
+    let kk = faer::Mat::from_fn(ndof, ndof, |i, j| k[i * ndof + j]);
+    for _ in 0..40 {
+        let y = lu.solve(&mm * &x);
+        let norm = y.norm_l2();
+        x = y * faer::Scale(1.0 / norm);
+        let num = (x.transpose() * &kk * &x)[(0, 0)];
+        let den = (x.transpose() * &mm * &x)[(0, 0)];
+        lambda = num / den;
+    }
+    lambda.sqrt()
+}
+
+fn rotating_cantilever(
+    opts: &BenchOptions,
+    log: &dyn Fn(&str),
+) -> Result<BenchProblem, BenchError> {
+    const P: &str = "rotating_cantilever";
+    let omega = 5.0;
+    let wref = rotating_beam_reference(omega, 200);
+    let check4 = rotating_beam_reference(4.0, 200);
+    let check6 = rotating_beam_reference(6.0, 200);
+    let fref = wref / (2.0 * std::f64::consts::PI);
+    let ladder = Ladder {
+        steps: if opts.quick {
+            vec![(2, 0.02), (3, 0.01), (4, 0.005)]
+        } else {
+            vec![(2, 0.02), (3, 0.01), (4, 0.005), (6, 0.0025), (8, 0.00125)]
+        },
+        rho: vec![0.6, 0.9],
+    };
+    let runs = ladder_runs(P, &ladder, fref, log, |n, dt, rho| {
+        let (m, h, stats, wall) = transient(
+            opts,
+            P,
+            "rotating_cantilever.toml",
+            &[
+                ("omega", omega),
+                ("elements", n as f64),
+                ("dt", dt),
+                ("rho_inf", rho),
+            ],
+        )?;
+        let x: Vec<f64> = component(&m, &h, P, "tip_flap")?
+            .iter()
+            .map(|v| v[0])
+            .collect();
+        // the record after the pulse, below the second flap mode (ω̄₂ ≈ 26 at Ω̄ = 5)
+        let skip = h.t.iter().take_while(|t| **t < 0.1).count();
+        let f = crate::signal::dominant_frequency(&x[skip..], h.t[1] - h.t[0], 0.3, 3.0)
+            .ok_or_else(|| run_err(P, "no spectral peak in the tip response"))?;
+        Ok((f, stats, wall))
+    })?;
+    Ok(BenchProblem {
+        name: P.into(),
+        title: "Rotating cantilever, Ω̄ = 5: first flapwise frequency".into(),
+        quantity: "first flapwise frequency (FFT of the tip response after a tip impulse, 12 s)".into(),
+        unit: "Hz".into(),
+        reference: fref,
+        reference_source: format!(
+            "ω̄₁ = {wref:.6} from an independent eigen-solution (inextensible Euler–Bernoulli \
+             beam, exact centrifugal tension, 200 Hermite elements; `bench::rotating_beam_reference`); \
+             the same code gives {check4:.4} at Ω̄ = 4 and {check6:.4} at Ω̄ = 6 (references.md §2: \
+             5.5850, 7.3604)"
+        ),
+        runs,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Statics
+
+fn rollup(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, BenchError> {
+    const P: &str = "rollup";
+    let ei = 100.0;
+    let moment = 2.0 * std::f64::consts::PI * ei; // L = 1
+                                                  // 4 elements would turn 90° each, beyond the small-deformation range of one element
+                                                  // (statics refuses it); 8 is the coarsest mesh that closes the circle
+    let counts: &[usize] = if opts.quick {
+        &[8, 16, 32]
+    } else {
+        &[8, 16, 32, 64]
+    };
+    let mut runs = Vec::new();
+    for &n in counts {
+        let t0 = Instant::now();
+        let m = model(
+            opts,
+            P,
+            "cantilever.toml",
+            &[("EI", ei), ("M", moment), ("elements", n as f64)],
+        )?;
+        let sol = solver::solve_statics(&m).map_err(|e| run_err(P, e))?;
+        let wall = t0.elapsed().as_secs_f64();
+        let k = m
+            .sensor_index("tip")
+            .ok_or_else(|| run_err(P, "no sensor 'tip'"))?;
+        let u = &sol.sensors[k];
+        let gap = ((1.0 + u[0]).powi(2) + u[1] * u[1] + u[2] * u[2]).sqrt();
+        log(&format!("{P}: {n} el: gap {gap:.3e} L, {wall:.3} s"));
+        runs.push(BenchRun {
+            config: "load stepping + Newton".into(),
+            elements: n,
+            dt: None,
+            rho_inf: None,
+            wall_s: wall,
+            steps: sol.report.load_steps,
+            newton_iterations: sol.report.newton_iterations,
+            rejected_steps: sol.report.rejected_steps,
+            value: gap,
+            error: gap,
+        });
+    }
+    Ok(BenchProblem {
+        name: P.into(),
+        title: "Roll-up of a cantilever under the end moment 2πEI/L".into(),
+        quantity: "distance of the tip from the root / L".into(),
+        unit: "L".into(),
+        reference: 0.0,
+        reference_source:
+            "closed form: the beam closes into a circle, the tip returns to the root \
+                           (references.md §5); the error column is the gap itself"
+                .into(),
+        runs,
+    })
+}
+
+fn bend45(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, BenchError> {
+    const P: &str = "bend45";
+    let want = [46.90, 15.56, 53.60];
+    let counts: &[usize] = if opts.quick {
+        &[4, 8, 16]
+    } else {
+        &[4, 8, 16, 32, 64]
+    };
+    let mut runs = Vec::new();
+    for &n in counts {
+        let t0 = Instant::now();
+        let m = model(
+            opts,
+            P,
+            "bend45.toml",
+            &[("P", 600.0), ("elements", n as f64)],
+        )?;
+        let sol = solver::solve_statics(&m).map_err(|e| run_err(P, e))?;
+        let wall = t0.elapsed().as_secs_f64();
+        let k = m
+            .sensor_index("tip")
+            .ok_or_else(|| run_err(P, "no sensor 'tip'"))?;
+        let x = &sol.sensors[k];
+        // distance to the published tip position, relative to its distance from the root
+        let d =
+            ((x[0] - want[0]).powi(2) + (x[1] - want[1]).powi(2) + (x[2] - want[2]).powi(2)).sqrt();
+        let scale = (want[0] * want[0] + want[1] * want[1] + want[2] * want[2]).sqrt();
+        log(&format!(
+            "{P}: {n} el: tip ({:.3}, {:.3}, {:.3}), {wall:.3} s",
+            x[0], x[1], x[2]
+        ));
+        runs.push(BenchRun {
+            config: "load stepping + Newton".into(),
+            elements: n,
+            dt: None,
+            rho_inf: None,
+            wall_s: wall,
+            steps: sol.report.load_steps,
+            newton_iterations: sol.report.newton_iterations,
+            rejected_steps: sol.report.rejected_steps,
+            value: x[2],
+            error: d / scale,
+        });
+    }
+    Ok(BenchProblem {
+        name: P.into(),
+        title: "45° bend, tip load P = 600".into(),
+        quantity: "tip position; value column: z; error: |x − x_ref| / |x_ref|".into(),
+        unit: "".into(),
+        reference: want[2],
+        reference_source: "published converged tip (46.90, 15.56, 53.60), references.md §6; \
+                           printed to 0.01, so errors below ~1e-4 are not resolved"
+            .into(),
+        runs,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Transient self-convergence problems
+
+/// Peak of |x| over a sampled history, refined by a parabola through the largest sample
+/// and its neighbours.
+fn peak_abs(x: &[f64]) -> f64 {
+    let (i, _) = x.iter().enumerate().fold((0, -1.0), |(bi, bv), (i, v)| {
+        if v.abs() > bv {
+            (i, v.abs())
+        } else {
+            (bi, bv)
+        }
+    });
+    if i == 0 || i + 1 >= x.len() {
+        return x[i].abs();
+    }
+    let (a, b, c) = (x[i - 1].abs(), x[i].abs(), x[i + 1].abs());
+    let den = a - 2.0 * b + c;
+    if den >= 0.0 {
+        return b;
+    }
+    b - 0.125 * (a - c) * (a - c) / den
+}
+
+fn spinup(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, BenchError> {
+    const P: &str = "spinup";
+    let peak =
+        |n: usize, dt: f64, rho: f64| -> Result<(f64, dynamics::RunStats, f64), BenchError> {
+            let (m, h, stats, wall) = transient(
+                opts,
+                P,
+                "spinup_beam.toml",
+                &[("elements", n as f64), ("dt", dt), ("rho_inf", rho)],
+            )?;
+            let x: Vec<f64> = component(&m, &h, P, "tip_deflection")?
+                .iter()
+                .map(|v| v[0])
+                .collect();
+            Ok((peak_abs(&x), stats, wall))
+        };
+    let (nref, dtref) = if opts.quick {
+        (10, 0.005)
+    } else {
+        (20, 0.0025)
+    };
+    let (reference, ref_stats, ref_wall) = peak(nref, dtref, 0.6)?;
+    log(&format!(
+        "{P}: reference {nref} el, dt {dtref}: {reference:.6} m, {ref_wall:.1} s"
+    ));
+    let ladder = Ladder {
+        steps: if opts.quick {
+            vec![(2, 0.025), (4, 0.01)]
+        } else {
+            vec![(2, 0.025), (3, 0.02), (4, 0.01), (6, 0.005)]
+        },
+        rho: vec![0.6, 0.9],
+    };
+    let runs = ladder_runs(P, &ladder, reference, log, peak)?;
+    Ok(BenchProblem {
+        name: P.into(),
+        title: "Spin-up beam: peak tip deflection in the hub frame".into(),
+        quantity: "peak |tip deflection| over 20 s (samples every 0.05 s, parabolic peak)".into(),
+        unit: "m".into(),
+        reference,
+        reference_source: format!(
+            "self-convergence reference: the finest latdyn run of the same model ({nref} elements, \
+             dt = {dtref} s, ρ∞ = 0.6, {} steps, {ref_wall:.1} s); references.md §7 gives no number",
+            ref_stats.steps
+        ),
+        runs,
+    })
+}
+
+fn minimast(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, BenchError> {
+    const P: &str = "minimast";
+    let peak =
+        |n: usize, dt: f64, rho: f64| -> Result<(f64, dynamics::RunStats, f64), BenchError> {
+            let (m, h, stats, wall) = transient(
+                opts,
+                P,
+                "minimast_bay.toml",
+                &[("elements", n as f64), ("dt", dt), ("rho_inf", rho)],
+            )?;
+            // resultant bending moment at the longeron's mid-span (section sensor: N, Vy, Vz,
+            // T, My, Mz)
+            let v = component(&m, &h, P, "longeron_mid")?;
+            let x: Vec<f64> = v.iter().map(|s| s[4].hypot(s[5])).collect();
+            Ok((peak_abs(&x), stats, wall))
+        };
+    let (nref, dtref) = if opts.quick { (4, 5e-4) } else { (8, 2.5e-4) };
+    let (reference, ref_stats, ref_wall) = peak(nref, dtref, 0.6)?;
+    log(&format!(
+        "{P}: reference {nref} el, dt {dtref}: {reference:.4} N·m, {ref_wall:.1} s"
+    ));
+    let ladder = Ladder {
+        steps: if opts.quick {
+            vec![(2, 2e-3), (4, 1e-3)]
+        } else {
+            vec![(2, 2e-3), (2, 1e-3), (4, 1e-3), (4, 5e-4)]
+        },
+        rho: vec![0.6, 0.9],
+    };
+    let runs = ladder_runs(P, &ladder, reference, log, peak)?;
+    Ok(BenchProblem {
+        name: P.into(),
+        title: "Mini-Mast bay deployment: peak longeron mid-span bending moment".into(),
+        quantity: "peak resultant bending moment at the longeron's mid-span".into(),
+        unit: "N·m".into(),
+        reference,
+        reference_source: format!(
+            "self-convergence reference: the finest latdyn run of the same model ({nref} elements \
+             per member, dt = {dtref} s, ρ∞ = 0.6, {} steps, {ref_wall:.1} s)",
+            ref_stats.steps
+        ),
+        runs,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Ensemble throughput
+
+fn blade_campaign(
+    opts: &BenchOptions,
+    variants: Vec<Vec<(String, f64)>>,
+    threads: usize,
+) -> Campaign {
+    Campaign {
+        model_path: opts.models.join("flapping_blade.toml"),
+        base: vec![("t_end".into(), 0.1)],
+        variants,
+        threads,
+        output: None,
+        shard: None,
+        frequency_sensor: None,
+        command_line: "latdyn bench".into(),
+    }
+}
+
+fn speeds(n: usize) -> Vec<Vec<(String, f64)>> {
+    (0..n)
+        .map(|i| vec![("omega".to_string(), 1.0 + 8.0 * i as f64 / n.max(2) as f64)])
+        .collect()
+}
+
+fn run_campaign(c: &Campaign) -> Result<(Vec<ensemble::Outcome>, f64), BenchError> {
+    const P: &str = "ensemble";
+    let p = ensemble::prepare(c).map_err(|e| run_err(P, e))?;
+    let t0 = Instant::now();
+    let out = ensemble::run(c, &p, &AtomicBool::new(false), false, &|_, _| {})
+        .map_err(|e| run_err(P, e))?;
+    let wall = t0.elapsed().as_secs_f64();
+    if let Some(bad) = out.iter().find(|o| !o.message.is_empty()) {
+        return Err(run_err(
+            P,
+            format!("variant {}: {}", bad.global_index, bad.message),
+        ));
+    }
+    Ok((out, wall))
+}
+
+fn ensemble_throughput(
+    opts: &BenchOptions,
+    log: &dyn Fn(&str),
+) -> Result<Vec<ThroughputRow>, BenchError> {
+    let counts: &[usize] = if opts.quick {
+        &[1, 10, 100]
+    } else {
+        &[1, 10, 100, 1000]
+    };
+    let mut rows = Vec::new();
+    for &n in counts {
+        let variants = speeds(n);
+        let (out, wall) = run_campaign(&blade_campaign(opts, variants.clone(), opts.threads))?;
+        // the same work variant by variant: every variant up to 16, then 16 spread ones
+        let sample: Vec<usize> = if n <= 16 {
+            (0..n).collect()
+        } else {
+            (0..16).map(|i| i * n / 16).collect()
+        };
+        let mut alone_wall = 0.0;
+        let mut diff = 0.0f64;
+        for &i in &sample {
+            let (one, w) = run_campaign(&blade_campaign(opts, vec![variants[i].clone()], 1))?;
+            alone_wall += w;
+            for (a, b) in out[i].sensors.iter().zip(&one[0].sensors) {
+                for (x, y) in a
+                    .min
+                    .iter()
+                    .chain(&a.max)
+                    .chain(&a.last)
+                    .zip(b.min.iter().chain(&b.max).chain(&b.last))
+                {
+                    diff = diff.max((x - y).abs());
+                }
+            }
+        }
+        let alone = alone_wall / sample.len() as f64;
+        let steps: usize = out.iter().map(|o| o.steps).sum();
+        let mut times = dynamics::StageTimes::default();
+        let mut busy = 0.0;
+        for o in &out {
+            times.add(&o.times);
+            busy += o.wall_s;
+        }
+        let row = ThroughputRow {
+            variants: n,
+            threads: opts.threads,
+            wall_s: wall,
+            variant_steps: steps,
+            variant_steps_per_s: steps as f64 / wall,
+            cost_per_variant_vs_alone: wall * opts.threads as f64 / n as f64 / alone,
+            element_assembly_share: (times.element_s + times.assembly_s) / busy,
+            factorization_share: times.factorization_s / busy,
+            output_share: times.output_s / busy,
+            max_difference_vs_alone: diff,
+        };
+        log(&format!(
+            "ensemble: {n} variants, {} threads: {wall:.2} s, {:.0} variant-steps/s",
+            opts.threads, row.variant_steps_per_s
+        ));
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+// ---------------------------------------------------------------------------------------
+// Report
+
+/// The Markdown report: one table per problem, the ensemble table, and the plot.
+pub fn markdown(r: &BenchReport, command: &str, plot_file: Option<&str>) -> String {
+    let mut s = String::new();
+    s.push_str("# latdyn speed against error\n\n");
+    s.push_str(&format!(
+        "Generated by `{command}` (latdyn {}) in {:.0} s on {}{}. Every number below comes \
+         from that run; wall time = load + compile + solve of one model on one thread.\n\n",
+        r.latdyn_version,
+        r.wall_s,
+        r.machine,
+        if r.quick { ", quick ladders" } else { "" }
+    ));
+    if let Some(p) = plot_file {
+        s.push_str(&format!("![work-precision]({p})\n\n"));
+    }
+    for p in &r.problems {
+        s.push_str(&format!("## {}\n\n", p.title));
+        s.push_str(&format!("Quantity: {}.  \n", p.quantity));
+        s.push_str(&format!("Reference: {}", crate::plot::fmt_num(p.reference)));
+        if !p.unit.is_empty() {
+            s.push_str(&format!(" {}", p.unit));
+        }
+        s.push_str(&format!(" — {}.\n\n", p.reference_source));
+        s.push_str("| configuration | elements | dt [s] | wall [s] | steps | Newton its | rejected | value | error |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+        for run in &p.runs {
+            s.push_str(&format!(
+                "| {} | {} | {} | {:.3} | {} | {} | {} | {} | {:.2e} |\n",
+                run.config,
+                run.elements,
+                run.dt
+                    .map(crate::plot::fmt_num)
+                    .unwrap_or_else(|| "—".into()),
+                run.wall_s,
+                run.steps,
+                run.newton_iterations,
+                run.rejected_steps,
+                crate::plot::fmt_num(run.value),
+                run.error
+            ));
+        }
+        s.push('\n');
+    }
+    if !r.throughput.is_empty() {
+        s.push_str("## Ensemble throughput: flapping-blade campaign\n\n");
+        s.push_str(
+            "Ω = 1 … 9 rad/s evenly spaced, 10 elements, dt = 0.005 s, t_end = 0.1 s (20 steps \
+             per variant), no output file. Cost per variant = campaign wall × threads / variants \
+             over the mean wall of the same variants run alone one by one (16 sampled); the \
+             stage shares are of the summed per-variant time; \"max |Δ| vs alone\" compares the \
+             sensors' min/max/final of the sampled variants (0 = bit-identical).\n\n",
+        );
+        s.push_str("| variants | threads | wall [s] | variant-steps | variant-steps/s | cost per variant / alone | element+assembly | factorization | output | max abs diff vs alone |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+        for t in &r.throughput {
+            s.push_str(&format!(
+                "| {} | {} | {:.3} | {} | {:.0} | {:.2} | {:.0} % | {:.0} % | {:.1} % | {:.1e} |\n",
+                t.variants,
+                t.threads,
+                t.wall_s,
+                t.variant_steps,
+                t.variant_steps_per_s,
+                t.cost_per_variant_vs_alone,
+                100.0 * t.element_assembly_share,
+                100.0 * t.factorization_share,
+                100.0 * t.output_share,
+                t.max_difference_vs_alone
+            ));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The work-precision plot: one curve per (problem, configuration), error against wall
+/// time. The roll-up's error is its gap (its reference is 0).
+pub fn plot(r: &BenchReport, out: &Path) -> Result<(), crate::plot::PlotError> {
+    let mut curves: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for p in &r.problems {
+        for run in &p.runs {
+            let label = format!("{}: {}", p.name, run.config);
+            match curves.iter_mut().find(|(l, _)| *l == label) {
+                Some((_, pts)) => pts.push((run.wall_s, run.error)),
+                None => curves.push((label, vec![(run.wall_s, run.error)])),
+            }
+        }
+    }
+    crate::plot::plot_work_precision(
+        &curves,
+        "latdyn work-precision (one point per resolution; finer to the right)",
+        "wall time [s]",
+        "relative error",
+        (1100, 760),
+        out,
+    )
+    .map(|_| ())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hermite_reference_reproduces_the_published_rotating_beam_table() {
+        // references.md §2 (5 digits): the reference of the bench must be right before it
+        // judges anything. 200 Hermite elements: mesh error ~1e-9, far below the table's
+        // last digit, so the tolerance is the table's rounding (5e-5 absolute).
+        for (wbar, want) in [
+            (0.0, 3.5160),
+            (2.0, 4.1373),
+            (4.0, 5.5850),
+            (6.0, 7.3604),
+            (10.0, 11.2023),
+        ] {
+            let got = rotating_beam_reference(wbar, 200);
+            assert!((got - want).abs() < 6e-5, "Ω̄ = {wbar}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn peak_of_a_sampled_parabola_is_exact() {
+        // a negative extreme counts by its magnitude
+        let x: Vec<f64> = (0..20)
+            .map(|i| (i as f64 * 0.1 - 1.234).powi(2) - 2.0)
+            .collect();
+        assert!((peak_abs(&x) - 2.0).abs() < 1e-12, "{}", peak_abs(&x));
+        let y: Vec<f64> = (0..20)
+            .map(|i| 2.0 - (i as f64 * 0.1 - 1.234).powi(2))
+            .collect();
+        assert!((peak_abs(&y) - 2.0).abs() < 1e-12, "{}", peak_abs(&y));
+    }
+}
