@@ -314,10 +314,21 @@ impl Assembler {
         }
         // (b) the element stage
         let t_el = Instant::now();
-        if let Err(e) =
+        // without a Jacobian to assemble, K and C are not needed (unless stiffness-
+        // proportional damping puts K into the residual)
+        let tangent = sink.is_some() || model.solver.rayleigh_beta != 0.0;
+        let evaluated = if tangent {
             self.eval
                 .evaluate(&self.elems, &scratch.inputs, need_inertia, &mut scratch.out)
-        {
+        } else {
+            self.eval.evaluate_residual(
+                &self.elems,
+                &scratch.inputs,
+                need_inertia,
+                &mut scratch.out,
+            )
+        };
+        if let Err(e) = evaluated {
             // a failed backend poisons the residual: Newton reports no convergence and
             // the variant is marked failed with the time, instead of a panic
             eprintln!("latdyn: {e}");

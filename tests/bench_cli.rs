@@ -25,7 +25,11 @@ fn bench_statics_ladders_write_the_report_and_converge_at_second_order() {
         dir.to_str().unwrap(),
         "--json",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is JSON");
     for f in ["results.md", "results.json", "work_precision.png"] {
         assert!(dir.join(f).is_file(), "{f} missing");
@@ -37,7 +41,10 @@ fn bench_statics_ladders_write_the_report_and_converge_at_second_order() {
     for p in problems {
         let runs = p["runs"].as_array().unwrap();
         let err: Vec<f64> = runs.iter().map(|r| r["error"].as_f64().unwrap()).collect();
-        let n: Vec<f64> = runs.iter().map(|r| r["elements"].as_f64().unwrap()).collect();
+        let n: Vec<f64> = runs
+            .iter()
+            .map(|r| r["elements"].as_f64().unwrap())
+            .collect();
         for r in runs {
             assert!(r["wall_s"].as_f64().unwrap() > 0.0);
             assert!(r["newton_iterations"].as_u64().unwrap() > 0);

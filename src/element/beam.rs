@@ -421,6 +421,28 @@ pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) 
     (m, sv, c)
 }
 
+/// M and S of [`inertia`] without C (for residual-only Newton iterations); the same
+/// arithmetic as there, so M and S are bit-identical to [`inertia`]'s.
+pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradients_closed(e, s, &t1, &t2);
+    let m = mass_from_gradients(e, &g);
+    let w = field_weights(&e.props);
+    let h = field_derivs(e, s, &t1, &t2, v, v);
+    let mut sv = [0.0; NDOF];
+    for (j, oj) in sv.iter_mut().enumerate() {
+        let mut acc = 0.0;
+        for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
+            for f in 0..3 {
+                let hv = [h[gp][f][0].ab, h[gp][f][1].ab, h[gp][f][2].ab];
+                acc += wg * w[f] * crate::math::dot(g[j][gp][f], hv);
+            }
+        }
+        *oj = acc * e.l0;
+    }
+    (m, sv)
+}
+
 /// Section forces at station ξ ∈ [0, 1], convected frame: [N, Vy, Vz, T, My, Mz].
 /// N = EA s/L0 with s the mean stretch ([`stretch`], tension positive), T = GJ (φx2 − φx1)/L0, My = EI_y κ_y and
 /// Mz = EI_z κ_z with κ = dθ/dx of the Hermite section rotation, Vy = dMz/dx,

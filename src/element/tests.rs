@@ -430,3 +430,29 @@ fn closed_form_force_tangent_and_mass_equal_the_hyper_dual_reference() {
         }
     }
 }
+
+#[test]
+fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() {
+    // modified Newton mixes both evaluations within a step: they must agree exactly on
+    // what the residual uses (f, energy, M, S), or the converged state would depend on
+    // when the Jacobian was refreshed
+    let mut rng = Lcg(7);
+    for _ in 0..50 {
+        let (e, s) = random_case(&mut rng, 0.05);
+        let v12: Vec12 = std::array::from_fn(|_| rng.next());
+        let i = ElemIn { state: s, v12 };
+        let (mut full, mut res) = (ElemOut::default(), ElemOut::default());
+        CpuEval::one(&e, &i, true, &mut full);
+        CpuEval::one_residual(&e, &i, true, &mut res);
+        assert_eq!(full.f, res.f);
+        assert_eq!(full.energy, res.energy);
+        assert_eq!(full.m, res.m);
+        assert_eq!(full.s, res.s);
+        assert!(res
+            .k
+            .iter()
+            .flatten()
+            .chain(res.c.iter().flatten())
+            .all(|x| *x == 0.0));
+    }
+}

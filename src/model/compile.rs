@@ -1613,6 +1613,19 @@ impl Compiler<'_> {
         if let Some(v) = &sp.max_iter {
             s.max_iter = self.integer(v, &f("max_iter"), 1)?;
         }
+        if let Some(v) = &sp.newton {
+            s.modified_newton = match v.get_ref().as_str() {
+                "modified" => true,
+                "full" => false,
+                other => {
+                    return Err(self.err(
+                        v.span(),
+                        f("newton"),
+                        format!("must be \"modified\" or \"full\", is \"{other}\""),
+                    ))
+                }
+            };
+        }
         if let Some(v) = &sp.dt_min {
             s.dt_min = self.positive(v, &f("dt_min"))?;
         }

@@ -532,6 +532,8 @@ pub struct SolverSpec {
     pub rho_inf: Option<Spanned<Num>>,
     pub tol: Option<Spanned<Num>>,
     pub max_iter: Option<Spanned<Num>>,
+    /// "modified" (default) or "full"
+    pub newton: Option<Spanned<String>>,
     pub dt_min: Option<Spanned<Num>>,
     pub load_steps: Option<Spanned<Num>>,
     pub rayleigh_alpha: Option<Spanned<Num>>,

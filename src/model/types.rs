@@ -246,6 +246,10 @@ pub struct SolverSettings {
     /// Newton: relative residual tolerance and maximum iterations
     pub tol: f64,
     pub max_iter: usize,
+    /// Newton Jacobian policy in dynamics: `false` = factorize every iteration (full
+    /// Newton); `true` = factorize at the first iteration of a step and reuse it while
+    /// the residual contracts at least 4× per iteration (modified Newton)
+    pub modified_newton: bool,
     /// smallest step before the run gives up
     pub dt_min: f64,
     /// Rayleigh damping C = alpha M + beta K (element level)
@@ -264,6 +268,7 @@ impl Default for SolverSettings {
             rho_inf: 0.9,
             tol: 1e-8,
             max_iter: 25,
+            modified_newton: true,
             dt_min: 1e-9,
             rayleigh_alpha: 0.0,
             rayleigh_beta: 0.0,

@@ -225,6 +225,7 @@ impl<'m> Integrator<'m> {
         let coeffs = Coeffs::dynamic(beta_p, gamma_p, 1.0);
         // unknown: accelerations of the active dofs at t_{n+1}; predictor: a_n
         acc.clone_from(&start.a);
+        let mut prev_res = f64::INFINITY;
         for it in 0..model.solver.max_iter.max(1) {
             // rebuild the state at t_{n+1} from the step start and the current accelerations
             s.clone_from(start);
@@ -248,7 +249,10 @@ impl<'m> Integrator<'m> {
             }
             joint::apply_increment(model, s, incr);
             joint::update_kinematics(model, s);
-            let info = match self.sys.evaluate(model, &self.asm, s, coeffs, true) {
+            // modified Newton: the Jacobian of the step's first iteration is reused
+            // (residual-only element evaluations) while the residual contracts well
+            let factor = it == 0 || !model.solver.modified_newton;
+            let info = match self.sys.evaluate(model, &self.asm, s, coeffs, factor) {
                 Ok(i) => i,
                 Err(_) => return Ok(None),
             };
@@ -279,6 +283,18 @@ impl<'m> Integrator<'m> {
                 self.driver_power = pw;
                 return Ok(Some(it));
             }
+            // slow contraction (or growth) with the old Jacobian: refresh it here, at
+            // this state, before taking the step
+            if !factor
+                && res > 0.25 * prev_res
+                && self
+                    .sys
+                    .evaluate(model, &self.asm, s, coeffs, true)
+                    .is_err()
+            {
+                return Ok(None);
+            }
+            prev_res = res;
             if self.sys.solve_neg_residual(&mut self.dx).is_err() {
                 return Ok(None);
             }
