@@ -420,8 +420,7 @@ pub fn run_on(
                 // samples go to the file when the variant ends (completed, failed or
                 // interrupted alike), so workers do not contend for the writer per sample
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    let sim =
-                        || dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {});
+                    let sim = || dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {});
                     match &stage.make {
                         Some(make) => crate::assembly::with_evaluator(make(), sim),
                         None => sim(),
