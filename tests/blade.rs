@@ -139,12 +139,12 @@ fn mac_tracking_keeps_flap_and_lag_branches_through_their_crossing() {
         assert!(rel(w(1, i), sw) < 0.02, "flap {} vs {sw} at {om}", w(1, i));
         assert!(rel(w(2, i), w(2, 0)) < 0.02, "lag {} at {om}", w(2, i));
         // the matches are unambiguous: mass-weighted MAC of uncoupled modes ~1
-        for b in 0..3 {
+        for (b, branch) in br.iter().take(3).enumerate() {
             assert!(
-                br[b].mac[i] > 0.99,
+                branch.mac[i] > 0.99,
                 "branch {} MAC {} at {om}",
                 b + 1,
-                br[b].mac[i]
+                branch.mac[i]
             );
         }
     }

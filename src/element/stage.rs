@@ -73,6 +73,13 @@ pub trait ElementEval: Send + Sync {
     }
     /// short name for logs and metadata, e.g. "cpu" or "gpu:llvmpipe f32"
     fn name(&self) -> String;
+    /// Unit round-off of the arithmetic the arrays are computed in: 2⁻⁵³ for f64, 2⁻²⁴
+    /// for an f32 GPU stage. The arrays carry relative errors of some multiple of it, so
+    /// solvers bound their residual tolerances by it (see
+    /// `crate::solver::linear::Convergence`).
+    fn unit_roundoff(&self) -> f64 {
+        f64::EPSILON / 2.0
+    }
 }
 
 /// The reference: the CPU element functions, f64.

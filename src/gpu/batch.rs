@@ -47,6 +47,7 @@ pub struct Batcher {
     stats: Arc<Mutex<BatchStats>>,
     thread: Mutex<Option<JoinHandle<()>>>,
     name: String,
+    precision: super::Precision,
 }
 
 impl Batcher {
@@ -54,6 +55,7 @@ impl Batcher {
     /// more clients after its first request.
     pub fn start(ctx: GpuContext, max_wait: Duration) -> Arc<Batcher> {
         let name = format!("gpu {} {}", ctx.adapter.label(), ctx.precision.as_str());
+        let precision = ctx.precision;
         let (tx, rx) = mpsc::channel::<Request>();
         let live = Arc::new(AtomicUsize::new(0));
         let stats = Arc::new(Mutex::new(BatchStats::default()));
@@ -68,6 +70,7 @@ impl Batcher {
             stats,
             thread: Mutex::new(thread),
             name,
+            precision,
         })
     }
 
@@ -260,5 +263,8 @@ impl ElementEval for BatchClient {
     }
     fn name(&self) -> String {
         self.batcher.name.clone()
+    }
+    fn unit_roundoff(&self) -> f64 {
+        self.batcher.precision.unit_roundoff()
     }
 }

@@ -93,21 +93,6 @@ fn corotate_back(q: &Mat3, o: &mut ElemOut) {
     mat_back(&mut o.c);
 }
 
-/// Smallest Newton tolerance (relative to the largest force contribution, like
-/// `[solver] tol`) that f32 element arrays can meet: their residual carries a relative
-/// round-off of some eps32 (6e-8) times the element's conditioning, so the default 1e-8
-/// would never converge. Measured residual floor: see README "GPU backend".
-pub const F32_NEWTON_TOL: f64 = 1e-6;
-
-/// Newton tolerance to run `model_tol` with kernels of `precision`.
-pub fn newton_tol(model_tol: f64, precision: &str) -> f64 {
-    if precision == "f32" {
-        model_tol.max(F32_NEWTON_TOL)
-    } else {
-        model_tol
-    }
-}
-
 /// Scalar type of the kernels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Precision {
@@ -127,6 +112,13 @@ impl Precision {
         match self {
             Precision::F32 => "f32",
             Precision::F64 => "f64",
+        }
+    }
+    /// unit round-off of the kernels' scalar (see [`ElementEval::unit_roundoff`])
+    pub fn unit_roundoff(self) -> f64 {
+        match self {
+            Precision::F32 => f32::EPSILON as f64 / 2.0,
+            Precision::F64 => f64::EPSILON / 2.0,
         }
     }
 }
@@ -632,12 +624,14 @@ pub struct GpuEval {
     ctx: Mutex<GpuContext>,
     times: Mutex<GpuTimes>,
     name: String,
+    precision: Precision,
 }
 
 impl GpuEval {
     pub fn new(ctx: GpuContext) -> GpuEval {
         let name = format!("gpu {} {}", ctx.adapter.label(), ctx.precision.as_str());
         GpuEval {
+            precision: ctx.precision,
             ctx: Mutex::new(ctx),
             times: Mutex::new(GpuTimes::default()),
             name,
@@ -668,5 +662,8 @@ impl ElementEval for GpuEval {
     }
     fn name(&self) -> String {
         self.name.clone()
+    }
+    fn unit_roundoff(&self) -> f64 {
+        self.precision.unit_roundoff()
     }
 }

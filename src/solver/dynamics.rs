@@ -8,7 +8,7 @@
 //! fails or produces a non-finite value is halved and retried down to `dt_min`.
 
 pub use super::linear::StageTimes;
-use super::linear::{norm_inf, NewtonSystem};
+use super::linear::{norm_inf, Convergence, NewtonSystem};
 use super::statics::worst_dof;
 use crate::assembly::{Assembler, Coeffs};
 use crate::joint::{self, State};
@@ -225,6 +225,7 @@ impl<'m> Integrator<'m> {
         let coeffs = Coeffs::dynamic(beta_p, gamma_p, 1.0);
         // unknown: accelerations of the active dofs at t_{n+1}; predictor: a_n
         acc.clone_from(&start.a);
+        let mut conv = Convergence::new(model.solver.tol, self.asm.eval.unit_roundoff());
         let mut prev_res = f64::INFINITY;
         for it in 0..model.solver.max_iter.max(1) {
             // rebuild the state at t_{n+1} from the step start and the current accelerations
@@ -260,7 +261,7 @@ impl<'m> Integrator<'m> {
             if !res.is_finite() {
                 return Ok(None);
             }
-            if res <= model.solver.tol * info.force_scale.max(f64::MIN_POSITIVE) || res == 0.0 {
+            if conv.converged(res, info.force_scale) {
                 if !self.asm.deformation_in_range(model, s) {
                     return Ok(None);
                 }

@@ -46,6 +46,61 @@ impl StageTimes {
     }
 }
 
+/// Newton convergence test on the residual's max norm, aware of the element stage's
+/// precision.
+///
+/// Converged: res ≤ tol · scale, with `tol` the model's `[solver] tol` and `scale` the
+/// largest single force contribution of the assembly. An element stage of unit round-off
+/// u (f32 GPU kernels: 6e-8, see [`crate::element::ElementEval::unit_roundoff`]) returns
+/// arrays with errors of some multiple of u relative to the terms they are computed from,
+/// and those can be much larger than the residual (moments whose difference is a shear
+/// force, centripetal inertia of which a small part is left): the residual has a noise
+/// floor, Newton converges quadratically down to it and then wanders about it. So
+/// - `tol` is raised to at least [`Convergence::TIGHT`]·u (f64: 1.8e-15, below any
+///   sensible tol, so f64 stages converge exactly as before); and
+/// - once the residual stops decreasing (more than half the previous iteration's, relative
+///   to the force scale) while within [`Convergence::NOISE`]·u of the force scale, it is
+///   at the stage's noise floor and the iterate is accepted: more iterations only resample
+///   the noise (then the step was halved, and halved again, as if Newton had diverged).
+#[derive(Clone, Copy, Debug)]
+pub struct Convergence {
+    tol: f64,
+    noise: f64,
+    prev: f64,
+}
+
+impl Convergence {
+    /// Tolerance floor in units of u: the residual carries u-relative errors of a few
+    /// element arrays per equation, each tens of operations deep.
+    pub const TIGHT: f64 = 16.0;
+    /// Largest residual, in units of u relative to the force scale, accepted as the noise
+    /// floor: two element arrays (f, and M a + S) of two elements per node equation, each
+    /// within the kernels' derived ~150u normwise bound (tests/gpu.rs, F32_TOL) of that
+    /// element's largest contribution, rounded up to 1024u. Measured on the rotating
+    /// cantilever at rest with f32 kernels: up to 130u (the shear of a vibrating beam is
+    /// the difference of its end moments).
+    pub const NOISE: f64 = 1024.0;
+
+    /// Test for one Newton solve with tolerance `tol` on a stage of unit round-off `u`.
+    pub fn new(tol: f64, u: f64) -> Convergence {
+        Convergence {
+            tol: tol.max(Self::TIGHT * u),
+            noise: Self::NOISE * u,
+            prev: f64::INFINITY,
+        }
+    }
+
+    /// Whether residual `res` (max norm) at force scale `scale` is converged; call once
+    /// per iteration, in order.
+    pub fn converged(&mut self, res: f64, scale: f64) -> bool {
+        let scale = scale.max(f64::MIN_POSITIVE);
+        let rel = res / scale;
+        let stalled = rel > 0.5 * self.prev;
+        self.prev = rel;
+        res <= self.tol * scale || res == 0.0 || (stalled && rel <= self.noise)
+    }
+}
+
 pub struct NewtonSystem {
     pub pattern: SparsePattern,
     pub values: Vec<f64>,

@@ -20,6 +20,7 @@ use crate::joint::{self, State};
 use crate::linalg::{dense_solve, general_eig, LinalgError};
 use crate::math::*;
 use crate::model::{ChainLink, DofMode, Model, NodeKin};
+use std::ops::{Add, Div, Mul, Sub};
 
 /// A constant-speed rotation found in the model.
 #[derive(Clone, Copy, Debug)]
@@ -322,18 +323,6 @@ impl C64 {
     pub fn new(re: f64, im: f64) -> C64 {
         C64 { re, im }
     }
-    pub fn add(self, o: C64) -> C64 {
-        C64::new(self.re + o.re, self.im + o.im)
-    }
-    pub fn sub(self, o: C64) -> C64 {
-        C64::new(self.re - o.re, self.im - o.im)
-    }
-    pub fn mul(self, o: C64) -> C64 {
-        C64::new(
-            self.re * o.re - self.im * o.im,
-            self.re * o.im + self.im * o.re,
-        )
-    }
     pub fn scale(self, a: f64) -> C64 {
         C64::new(a * self.re, a * self.im)
     }
@@ -343,7 +332,33 @@ impl C64 {
     pub fn abs(self) -> f64 {
         self.re.hypot(self.im)
     }
-    pub fn div(self, o: C64) -> C64 {
+}
+
+// arithmetic as the std operators (also callable as `a.add(b)` with the traits in scope)
+impl Add for C64 {
+    type Output = C64;
+    fn add(self, o: C64) -> C64 {
+        C64::new(self.re + o.re, self.im + o.im)
+    }
+}
+impl Sub for C64 {
+    type Output = C64;
+    fn sub(self, o: C64) -> C64 {
+        C64::new(self.re - o.re, self.im - o.im)
+    }
+}
+impl Mul for C64 {
+    type Output = C64;
+    fn mul(self, o: C64) -> C64 {
+        C64::new(
+            self.re * o.re - self.im * o.im,
+            self.re * o.im + self.im * o.re,
+        )
+    }
+}
+impl Div for C64 {
+    type Output = C64;
+    fn div(self, o: C64) -> C64 {
         let d = o.re * o.re + o.im * o.im;
         C64::new(
             (self.re * o.re + self.im * o.im) / d,

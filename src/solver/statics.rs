@@ -1,7 +1,7 @@
 //! Statics: Newton iterations with automatic load stepping (the step grows after easy
 //! increments, halves after a failed one), large rotations through multiplicative updates.
 
-use super::linear::{norm_inf, NewtonSystem};
+use super::linear::{norm_inf, Convergence, NewtonSystem};
 use crate::assembly::{Assembler, Coeffs};
 use crate::joint::{self, State};
 use crate::model::Model;
@@ -38,6 +38,7 @@ pub fn newton(
 ) -> Result<Option<usize>, StaticsError> {
     let c = Coeffs::statics(lambda);
     let mut dx = vec![0.0; asm.n_eq];
+    let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
     for it in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
         let info = match sys.evaluate(model, asm, s, c, true) {
@@ -48,7 +49,7 @@ pub fn newton(
         if !res.is_finite() {
             return Ok(None);
         }
-        if res <= model.solver.tol * info.force_scale.max(f64::MIN_POSITIVE) || res == 0.0 {
+        if conv.converged(res, info.force_scale) {
             return Ok(asm.deformation_in_range(model, s).then_some(it));
         }
         if sys.solve_neg_residual(&mut dx).is_err() {
