@@ -11,7 +11,8 @@
 //!   hinge angles:     v = ξ̇,             a = ξ̈,
 //! by central differences of the residual (step 1e-6 relative: truncation ~1e-12, round-off
 //! ~1e-10 of the force scale). The steady state comes from Newton on the same residual
-//! with that Jacobian. The quadratic eigenproblem is solved in first-order form after
+//! with that Jacobian, shifted by a multiple of the mass matrix that fades with the
+//! residual (pseudo-transient continuation) so that it is the stable one. The quadratic eigenproblem is solved in first-order form after
 //! condensing massless coordinates; its eigenvalues are the frequencies in the rotating
 //! frame (for an articulated blade the rigid flap mode sits at exactly Ω).
 
@@ -20,7 +21,9 @@ use crate::joint::{self, State};
 use crate::linalg::{dense_solve, general_eig, LinalgError};
 use crate::math::*;
 use crate::model::{ChainLink, DofMode, Model, NodeKin};
-use std::ops::{Add, Div, Mul, Sub};
+
+/// Iteration limit of the steady-state solve.
+const STEADY_MAX_ITER: usize = 50;
 
 /// A constant-speed rotation found in the model.
 #[derive(Clone, Copy, Debug)]
@@ -200,31 +203,39 @@ impl Frame<'_> {
         self.r.clone()
     }
 
-    /// Dense ∂r/∂(ξ, ξ̇, ξ̈) by central differences, row-major n×n each.
-    fn jacobians(&mut self, need_c_m: bool) -> [Vec<f64>; 3] {
+    /// Dense ∂r/∂ξ (`Rate::Position`), ∂r/∂ξ̇ or ∂r/∂ξ̈ by central differences, row-major n×n.
+    fn jacobian(&mut self, wrt: Rate) -> Vec<f64> {
         let n = self.asm.n_eq;
         let z = vec![0.0; n];
-        let mut out = [vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n * n]];
-        let kinds = if need_c_m { 3 } else { 1 };
-        for (kind, mat) in out.iter_mut().enumerate().take(kinds) {
-            for j in 0..n {
-                let h = if kind == 0 { 1e-6 } else { 1e-4 };
-                let mut p = z.clone();
-                p[j] = h;
-                let mut mneg = z.clone();
-                mneg[j] = -h;
-                let (rp, rm) = match kind {
-                    0 => (self.residual(&p, &z, &z), self.residual(&mneg, &z, &z)),
-                    1 => (self.residual(&z, &p, &z), self.residual(&z, &mneg, &z)),
-                    _ => (self.residual(&z, &z, &p), self.residual(&z, &z, &mneg)),
-                };
-                for i in 0..n {
-                    mat[i * n + j] = (rp[i] - rm[i]) / (2.0 * h);
-                }
+        let mut mat = vec![0.0; n * n];
+        let h = match wrt {
+            Rate::Position => 1e-6,
+            Rate::Velocity | Rate::Acceleration => 1e-4,
+        };
+        for j in 0..n {
+            let mut p = z.clone();
+            p[j] = h;
+            let mut mneg = z.clone();
+            mneg[j] = -h;
+            let (rp, rm) = match wrt {
+                Rate::Position => (self.residual(&p, &z, &z), self.residual(&mneg, &z, &z)),
+                Rate::Velocity => (self.residual(&z, &p, &z), self.residual(&z, &mneg, &z)),
+                Rate::Acceleration => (self.residual(&z, &z, &p), self.residual(&z, &z, &mneg)),
+            };
+            for i in 0..n {
+                mat[i * n + j] = (rp[i] - rm[i]) / (2.0 * h);
             }
         }
-        out
+        mat
     }
+}
+
+/// Which rate of the rotating-frame perturbation a Jacobian is taken with respect to.
+#[derive(Clone, Copy, Debug)]
+enum Rate {
+    Position,
+    Velocity,
+    Acceleration,
 }
 
 /// Result of a rotating-frame modal analysis.
@@ -240,8 +251,12 @@ pub struct RotatingModes {
     /// complex mode shapes of the lowest modes (as many as asked for with
     /// [`rotating_modes_with_shapes`]), by equation index; empty otherwise
     pub shapes: Vec<Vec<C64>>,
-    /// M·shape for each shape (M the rotating-frame mass matrix), for mass-weighted MAC
+    /// M·shape for each shape (M = [`Self::mass`]), for the mass-weighted MAC
     pub mass_shapes: Vec<Vec<C64>>,
+    /// rotating-frame mass matrix about the steady state (row-major n×n, symmetric):
+    /// the MAC of a shape from another step against these shapes must be weighted with
+    /// this one matrix, not with that step's own
+    pub mass: Vec<f64>,
 }
 
 /// Find the steady rotating state and the modes about it.
@@ -268,8 +283,23 @@ pub fn rotating_modes_with_shapes(
         r: vec![0.0; n],
     };
     let z = vec![0.0; n];
+    // Steady state: Newton on r(ξ) = 0, regularised by pseudo-transient continuation.
+    // Plain Newton from the unstressed reference is attracted to the wrong equilibrium:
+    // there the structure carries no centrifugal tension yet, so the tangent lacks the
+    // geometric stiffness that holds a hinged blade in the plane of rotation and is
+    // indefinite (for a blade tilted by β about a hinge, −Ω² I sin²β along the flap),
+    // and the first step flaps the blade *up* towards the unstable relative equilibrium
+    // along the axis. Centrifugal softening is bounded by Ω²·M (−½ Σ m |Ω × r|² has
+    // Hessian ⪰ −Ω² M), so with μ = Ω² the matrix K + μ M is at least the elastic
+    // stiffness at the unstressed start (no negative direction) and the step descends
+    // towards the stable steady state (here: −0.158 rad, the tilt being 0.157); μ then
+    // shrinks with the residual (switched evolution relaxation), which gives back
+    // Newton's quadratic convergence at the end.
+    let m_metric = fr.jacobian(Rate::Acceleration);
+    let mu0 = dot(spin.omega, spin.omega);
+    let mut res0 = None;
     let mut iters = 0;
-    for it in 0..30 {
+    for it in 0..STEADY_MAX_ITER {
         iters = it;
         let r = fr.residual(&z, &z, &z);
         let scale_f = {
@@ -281,7 +311,12 @@ pub fn rotating_modes_with_shapes(
         if res <= 1e-10 * scale_f.max(f64::MIN_POSITIVE) {
             break;
         }
-        let [k, _, _] = fr.jacobians(false);
+        let res0 = *res0.get_or_insert(res);
+        let mu = mu0 * (res / res0).min(1.0);
+        let mut k = fr.jacobian(Rate::Position);
+        for (kij, mij) in k.iter_mut().zip(&m_metric) {
+            *kij += mu * mij;
+        }
         let mut dx: Vec<f64> = r.iter().map(|x| -x).collect();
         dense_solve(&k, n, &mut dx)?;
         fr.asm.limit_rotation_step(&mut dx, 0.5);
@@ -290,17 +325,16 @@ pub fn rotating_modes_with_shapes(
         joint::update_kinematics(model, &mut b);
         fr.base = b;
     }
-    let [k, c, m] = fr.jacobians(true);
+    let k = fr.jacobian(Rate::Position);
+    let c = fr.jacobian(Rate::Velocity);
+    let m = fr.jacobian(Rate::Acceleration);
     let qm = quadratic_modes(&k, &c, &m, n, shapes)?;
-    let mass_shapes = qm
-        .shapes
-        .iter()
-        .map(|x| {
-            (0..n)
-                .map(|i| (0..n).fold(C64::ZERO, |acc, j| acc.add(x[j].scale(m[i * n + j]))))
-                .collect()
-        })
+    // the mass matrix is symmetric (kinetic energy); for the MAC's inner product take its
+    // symmetric part, free of the differencing round-off, so the Hermitian forms are real
+    let m_sym: Vec<f64> = (0..n * n)
+        .map(|ij| 0.5 * (m[ij] + m[(ij % n) * n + ij / n]))
         .collect();
+    let mass_shapes = qm.shapes.iter().map(|x| mat_vec(&m_sym, x)).collect();
     Ok(RotatingModes {
         omega: norm(spin.omega),
         frequencies_hz: qm.frequencies_hz,
@@ -308,7 +342,16 @@ pub fn rotating_modes_with_shapes(
         steady_iterations: iters,
         shapes: qm.shapes,
         mass_shapes,
+        mass: m_sym,
     })
+}
+
+/// M x for a real row-major n×n M and a complex x of length n.
+fn mat_vec(m: &[f64], x: &[C64]) -> Vec<C64> {
+    let n = x.len();
+    (0..n)
+        .map(|i| (0..n).fold(C64::ZERO, |acc, j| acc + x[j].scale(m[i * n + j])))
+        .collect()
 }
 
 /// A complex number, just what the shape computation and MAC need.
@@ -334,20 +377,21 @@ impl C64 {
     }
 }
 
-// arithmetic as the std operators (also callable as `a.add(b)` with the traits in scope)
-impl Add for C64 {
+impl std::ops::Add for C64 {
     type Output = C64;
     fn add(self, o: C64) -> C64 {
         C64::new(self.re + o.re, self.im + o.im)
     }
 }
-impl Sub for C64 {
+
+impl std::ops::Sub for C64 {
     type Output = C64;
     fn sub(self, o: C64) -> C64 {
         C64::new(self.re - o.re, self.im - o.im)
     }
 }
-impl Mul for C64 {
+
+impl std::ops::Mul for C64 {
     type Output = C64;
     fn mul(self, o: C64) -> C64 {
         C64::new(
@@ -356,7 +400,8 @@ impl Mul for C64 {
         )
     }
 }
-impl Div for C64 {
+
+impl std::ops::Div for C64 {
     type Output = C64;
     fn div(self, o: C64) -> C64 {
         let d = o.re * o.re + o.im * o.im;
@@ -388,41 +433,46 @@ fn complex_solve(a: &mut [C64], n: usize, b: &mut [C64]) {
         }
         let piv = a[col * n + col];
         for i in col + 1..n {
-            let f = a[i * n + col].div(piv);
+            let f = a[i * n + col] / piv;
             if f == C64::ZERO {
                 continue;
             }
             for j in col..n {
                 let v = a[col * n + j];
-                a[i * n + j] = a[i * n + j].sub(f.mul(v));
+                a[i * n + j] = a[i * n + j] - f * v;
             }
-            b[i] = b[i].sub(f.mul(b[col]));
+            b[i] = b[i] - f * b[col];
         }
     }
     for i in (0..n).rev() {
         let mut acc = b[i];
         for j in i + 1..n {
-            acc = acc.sub(a[i * n + j].mul(b[j]));
+            acc = acc - a[i * n + j] * b[j];
         }
-        b[i] = acc.div(a[i * n + i]);
+        b[i] = acc / a[i * n + i];
     }
 }
 
 /// Modal assurance criterion of two complex shapes, mass-weighted:
-/// |aᴴ M b|² / ((aᴴ M a)(bᴴ M b)), with `mb` = M b, `ma` = M a. 1 = same shape, 0 = M-orthogonal.
+/// |aᴴ M b|² / ((aᴴ M a)(bᴴ M b)), with `ma` = M a and `mb` = M b for one and the same
+/// real symmetric positive semi-definite M. 1 = same shape (up to a complex factor),
+/// 0 = M-orthogonal; never above 1 (Cauchy–Schwarz in the M inner product), which holds
+/// only when both products use the same M: mixing the mass matrices of two operating
+/// points is not an inner product and can exceed 1.
 pub fn mac(a: &[C64], ma: &[C64], b: &[C64], mb: &[C64]) -> f64 {
     let dot = |x: &[C64], y: &[C64]| {
         x.iter()
             .zip(y)
-            .fold(C64::ZERO, |acc, (p, q)| acc.add(p.conj().mul(*q)))
+            .fold(C64::ZERO, |acc, (p, q)| acc + p.conj() * *q)
     };
     let ab = dot(a, mb);
-    let aa = dot(a, ma).abs();
-    let bb = dot(b, mb).abs();
+    // Hermitian forms of a symmetric M: real
+    let aa = dot(a, ma).re;
+    let bb = dot(b, mb).re;
     if aa <= 0.0 || bb <= 0.0 {
         return 0.0;
     }
-    (ab.abs() * ab.abs()) / (aa * bb)
+    (ab.re * ab.re + ab.im * ab.im) / (aa * bb)
 }
 
 /// One mode followed across the values of a parameter (rotor speeds).
@@ -454,16 +504,20 @@ pub fn track_branches(steps: &[RotatingModes], count: usize) -> Vec<Branch> {
             mac: vec![1.0],
         })
         .collect();
-    let mut refs: Vec<(Vec<C64>, Vec<C64>)> = (0..count)
-        .map(|k| (first.shapes[k].clone(), first.mass_shapes[k].clone()))
-        .collect();
+    let mut refs: Vec<Vec<C64>> = first.shapes[..count].to_vec();
     for st in &steps[1..] {
         let nc = st.shapes.len();
         let mut pairs: Vec<(f64, usize, usize)> = Vec::with_capacity(count * nc);
-        for (b, (x, mx)) in refs.iter().enumerate() {
+        for (b, x) in refs.iter().enumerate() {
+            if st.mass.len() != x.len() * x.len() {
+                continue;
+            }
+            // the reference shape weighted with this step's mass matrix, like the
+            // candidates: one M in all three products of the MAC
+            let mx = mat_vec(&st.mass, x);
             for c in 0..nc {
                 if x.len() == st.shapes[c].len() {
-                    pairs.push((mac(x, mx, &st.shapes[c], &st.mass_shapes[c]), b, c));
+                    pairs.push((mac(x, &mx, &st.shapes[c], &st.mass_shapes[c]), b, c));
                 }
             }
         }
@@ -484,7 +538,7 @@ pub fn track_branches(steps: &[RotatingModes], count: usize) -> Vec<Branch> {
                     br.damping.push(st.damping[c]);
                     br.mac.push(v);
                     if v >= 0.8 {
-                        refs[b] = (st.shapes[c].clone(), st.mass_shapes[c].clone());
+                        refs[b] = st.shapes[c].clone();
                     }
                 }
                 None => {
@@ -600,14 +654,10 @@ pub fn quadratic_modes(
         let lam = C64::new(re, im);
         // shift a hair off the eigenvalue so the factorisation stays finite
         let h = 1e-10 * lam.abs().max(f64::MIN_POSITIVE);
-        let sigma = lam.add(C64::new(h, h));
-        let s2 = sigma.mul(sigma);
+        let sigma = lam + C64::new(h, h);
+        let s2 = sigma * sigma;
         let q: Vec<C64> = (0..nk * nk)
-            .map(|ij| {
-                s2.scale(mk[ij])
-                    .add(sigma.scale(ck[ij]))
-                    .add(C64::new(kk[ij], 0.0))
-            })
+            .map(|ij| s2.scale(mk[ij]) + sigma.scale(ck[ij]) + C64::new(kk[ij], 0.0))
             .collect();
         // deterministic start vector with no special symmetry
         let mut x: Vec<C64> = (0..nk)
@@ -627,7 +677,7 @@ pub fn quadratic_modes(
             full[gi] = x[i];
         }
         for (r, &gi) in drop.iter().enumerate() {
-            full[gi] = (0..nk).fold(C64::ZERO, |acc, j| acc.add(x[j].scale(tmap[r * nk + j])));
+            full[gi] = (0..nk).fold(C64::ZERO, |acc, j| acc + x[j].scale(tmap[r * nk + j]));
         }
         // phase and scale: largest component = 1
         let imax = (0..n)
@@ -635,7 +685,7 @@ pub fn quadratic_modes(
             .unwrap_or(0);
         let p = full[imax];
         if p.abs() > 0.0 {
-            full.iter_mut().for_each(|z| *z = z.div(p));
+            full.iter_mut().for_each(|z| *z = *z / p);
         }
         out_shapes.push(full);
     }
@@ -644,4 +694,86 @@ pub fn quadratic_modes(
         damping: modes.iter().map(|m| m.1).collect(),
         shapes: out_shapes,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random numbers in [−1, 1).
+    fn noise(k: usize) -> f64 {
+        let x = ((k as f64 + 1.0) * 12.9898).sin() * 43_758.545_3;
+        2.0 * (x - x.floor()) - 1.0
+    }
+
+    /// A symmetric positive definite n×n matrix, A Aᵀ + I, scaled by `s`.
+    fn spd(n: usize, seed: usize, s: f64) -> Vec<f64> {
+        let a: Vec<f64> = (0..n * n).map(|k| noise(seed + k)).collect();
+        let mut m = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                let v: f64 = (0..n).map(|k| a[i * n + k] * a[j * n + k]).sum();
+                m[i * n + j] = s * (v + if i == j { 1.0 } else { 0.0 });
+            }
+        }
+        m
+    }
+
+    fn shape(n: usize, seed: usize) -> Vec<C64> {
+        (0..n)
+            .map(|i| C64::new(noise(seed + 2 * i), noise(seed + 2 * i + 1)))
+            .collect()
+    }
+
+    fn step(m: Vec<f64>, shapes: Vec<Vec<C64>>, f: f64) -> RotatingModes {
+        let mass_shapes = shapes.iter().map(|x| mat_vec(&m, x)).collect();
+        RotatingModes {
+            omega: 1.0,
+            frequencies_hz: (0..shapes.len()).map(|k| f * (k + 1) as f64).collect(),
+            damping: vec![0.0; shapes.len()],
+            steady_iterations: 0,
+            shapes,
+            mass_shapes,
+            mass: m,
+        }
+    }
+
+    #[test]
+    fn mac_is_between_zero_and_one_and_one_for_a_complex_multiple() {
+        let n = 7;
+        let m = spd(n, 11, 1.0);
+        for t in 0..20 {
+            let a = shape(n, 100 * t + 1);
+            let b = shape(n, 100 * t + 50);
+            let v = mac(&a, &mat_vec(&m, &a), &b, &mat_vec(&m, &b));
+            assert!((0.0..=1.0).contains(&v), "MAC {v}");
+            // the same shape with another phase and length
+            let z = C64::new(noise(t), 1.0 + noise(t + 7));
+            let c: Vec<C64> = a.iter().map(|x| *x * z).collect();
+            let v = mac(&a, &mat_vec(&m, &a), &c, &mat_vec(&m, &c));
+            assert!((v - 1.0).abs() < 1e-13, "MAC {v}");
+        }
+    }
+
+    #[test]
+    fn tracking_weighs_both_shapes_with_one_mass_matrix() {
+        // The same two shapes at two speeds whose mass matrices differ (the rotating-frame
+        // M depends on the steady state). Weighting the old shape with the old M and the
+        // new one with the new M is no inner product: it gave the ratio of the two masses
+        // (> 1 here) for identical shapes.
+        let n = 6;
+        let (a, b) = (shape(n, 3), shape(n, 40));
+        let steps = [
+            step(spd(n, 5, 1.0), vec![a.clone(), b.clone()], 1.0),
+            step(spd(n, 9, 1.7), vec![a.clone(), b.clone()], 1.1),
+        ];
+        let old = mac(&a, &steps[0].mass_shapes[0], &a, &steps[1].mass_shapes[0]);
+        assert!(old > 1.0, "{old}");
+        let br = track_branches(&steps, 2);
+        for x in &br {
+            assert!((x.mac[1] - 1.0).abs() < 1e-13, "{:?}", x.mac);
+        }
+        assert_eq!(br[0].frequencies_hz, vec![1.0, 1.1]);
+        assert_eq!(br[1].frequencies_hz, vec![2.0, 2.2]);
+    }
 }
