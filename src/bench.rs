@@ -542,98 +542,114 @@ fn peak_abs(x: &[f64]) -> f64 {
     b - 0.125 * (a - c) * (a - c) / den
 }
 
-fn spinup(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, BenchError> {
-    const P: &str = "spinup";
+/// A transient problem judged against its own finest run (self-convergence).
+struct SelfConvergence {
+    name: &'static str,
+    file: &'static str,
+    title: &'static str,
+    quantity: &'static str,
+    unit: &'static str,
+    sensor: &'static str,
+    /// the scalar whose peak is the quantity, from one sample's components
+    scalar: fn(&[f64]) -> f64,
+    /// what `elements` counts, for the report
+    mesh: &'static str,
+    /// appended to the reference's description
+    remark: &'static str,
+    reference: (usize, f64),
+    ladder: Vec<(usize, f64)>,
+}
+
+fn self_convergence(
+    opts: &BenchOptions,
+    log: &dyn Fn(&str),
+    p: SelfConvergence,
+) -> Result<BenchProblem, BenchError> {
     let peak =
         |n: usize, dt: f64, rho: f64| -> Result<(f64, dynamics::RunStats, f64), BenchError> {
             let (m, h, stats, wall) = transient(
                 opts,
-                P,
-                "spinup_beam.toml",
+                p.name,
+                p.file,
                 &[("elements", n as f64), ("dt", dt), ("rho_inf", rho)],
             )?;
-            let x: Vec<f64> = component(&m, &h, P, "tip_deflection")?
+            let x: Vec<f64> = component(&m, &h, p.name, p.sensor)?
                 .iter()
-                .map(|v| v[0])
+                .map(|v| (p.scalar)(v))
                 .collect();
             Ok((peak_abs(&x), stats, wall))
         };
-    let (nref, dtref) = if opts.quick {
-        (10, 0.005)
-    } else {
-        (20, 0.0025)
-    };
+    let (nref, dtref) = p.reference;
     let (reference, ref_stats, ref_wall) = peak(nref, dtref, 0.6)?;
     log(&format!(
-        "{P}: reference {nref} el, dt {dtref}: {reference:.6} m, {ref_wall:.1} s"
+        "{}: reference {nref} el, dt {dtref}: {reference:.6} {}, {ref_wall:.1} s",
+        p.name, p.unit
     ));
     let ladder = Ladder {
-        steps: if opts.quick {
-            vec![(2, 0.025), (4, 0.01)]
-        } else {
-            vec![(2, 0.025), (3, 0.02), (4, 0.01), (6, 0.005)]
-        },
+        steps: p.ladder.clone(),
         rho: vec![0.6, 0.9],
     };
-    let runs = ladder_runs(P, &ladder, reference, log, peak)?;
+    let runs = ladder_runs(p.name, &ladder, reference, log, peak)?;
     Ok(BenchProblem {
-        name: P.into(),
-        title: "Spin-up beam: peak tip deflection in the hub frame".into(),
-        quantity: "peak |tip deflection| over 20 s (samples every 0.05 s, parabolic peak)".into(),
-        unit: "m".into(),
+        name: p.name.into(),
+        title: p.title.into(),
+        quantity: p.quantity.into(),
+        unit: p.unit.into(),
         reference,
         reference_source: format!(
-            "self-convergence reference: the finest latdyn run of the same model ({nref} elements, \
-             dt = {dtref} s, ρ∞ = 0.6, {} steps, {ref_wall:.1} s); references.md §7 gives no number",
-            ref_stats.steps
+            "self-convergence reference: the finest latdyn run of the same model ({nref} {}, \
+             dt = {dtref} s, ρ∞ = 0.6, {} steps, {ref_wall:.1} s){}",
+            p.mesh, ref_stats.steps, p.remark
         ),
         runs,
     })
 }
 
+fn spinup(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, BenchError> {
+    let p = SelfConvergence {
+        name: "spinup",
+        file: "spinup_beam.toml",
+        title: "Spin-up beam: peak tip deflection in the hub frame",
+        quantity: "peak |tip deflection| over 20 s (samples every 0.05 s, parabolic peak)",
+        unit: "m",
+        sensor: "tip_deflection",
+        scalar: |v| v[0],
+        mesh: "elements",
+        remark: "; references.md §7 gives no number",
+        reference: if opts.quick {
+            (10, 0.005)
+        } else {
+            (20, 0.0025)
+        },
+        ladder: if opts.quick {
+            vec![(2, 0.025), (4, 0.01)]
+        } else {
+            vec![(2, 0.025), (3, 0.02), (4, 0.01), (6, 0.005)]
+        },
+    };
+    self_convergence(opts, log, p)
+}
+
 fn minimast(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, BenchError> {
-    const P: &str = "minimast";
-    let peak =
-        |n: usize, dt: f64, rho: f64| -> Result<(f64, dynamics::RunStats, f64), BenchError> {
-            let (m, h, stats, wall) = transient(
-                opts,
-                P,
-                "minimast_bay.toml",
-                &[("elements", n as f64), ("dt", dt), ("rho_inf", rho)],
-            )?;
-            // resultant bending moment at the longeron's mid-span (section sensor: N, Vy, Vz,
-            // T, My, Mz)
-            let v = component(&m, &h, P, "longeron_mid")?;
-            let x: Vec<f64> = v.iter().map(|s| s[4].hypot(s[5])).collect();
-            Ok((peak_abs(&x), stats, wall))
-        };
-    let (nref, dtref) = if opts.quick { (4, 5e-4) } else { (8, 2.5e-4) };
-    let (reference, ref_stats, ref_wall) = peak(nref, dtref, 0.6)?;
-    log(&format!(
-        "{P}: reference {nref} el, dt {dtref}: {reference:.4} N·m, {ref_wall:.1} s"
-    ));
-    let ladder = Ladder {
-        steps: if opts.quick {
+    let p = SelfConvergence {
+        name: "minimast",
+        file: "minimast_bay.toml",
+        title: "Mini-Mast bay deployment: peak longeron mid-span bending moment",
+        quantity: "peak resultant bending moment at the longeron's mid-span",
+        unit: "N·m",
+        sensor: "longeron_mid",
+        // section sensor components: N, Vy, Vz, T, My, Mz
+        scalar: |v| v[4].hypot(v[5]),
+        mesh: "elements per member",
+        remark: "",
+        reference: if opts.quick { (4, 5e-4) } else { (8, 2.5e-4) },
+        ladder: if opts.quick {
             vec![(2, 2e-3), (4, 1e-3)]
         } else {
             vec![(2, 2e-3), (2, 1e-3), (4, 1e-3), (4, 5e-4)]
         },
-        rho: vec![0.6, 0.9],
     };
-    let runs = ladder_runs(P, &ladder, reference, log, peak)?;
-    Ok(BenchProblem {
-        name: P.into(),
-        title: "Mini-Mast bay deployment: peak longeron mid-span bending moment".into(),
-        quantity: "peak resultant bending moment at the longeron's mid-span".into(),
-        unit: "N·m".into(),
-        reference,
-        reference_source: format!(
-            "self-convergence reference: the finest latdyn run of the same model ({nref} elements \
-             per member, dt = {dtref} s, ρ∞ = 0.6, {} steps, {ref_wall:.1} s)",
-            ref_stats.steps
-        ),
-        runs,
-    })
+    self_convergence(opts, log, p)
 }
 
 // ---------------------------------------------------------------------------------------
