@@ -62,6 +62,8 @@ pub struct BenchRun {
     pub value: f64,
     /// |value − reference| / |reference| (roll-up: the gap over L, reference 0)
     pub error: f64,
+    /// the run's energy-balance warning (likely unstable), if any
+    pub warning: Option<String>,
 }
 
 /// One reference problem and its runs.
@@ -249,10 +251,17 @@ fn ladder_runs(
                 rejected_steps: stats.rejected_steps,
                 value,
                 error: rel(value, reference),
+                warning: stats.warning(),
             };
             log(&format!(
-                "{problem}: ρ∞ {rho}, {n} el, dt {dt}: {value:.6} (error {:.2e}), {wall:.2} s, {} steps, {} Newton",
-                run.error, run.steps, run.newton_iterations
+                "{problem}: ρ∞ {rho}, {n} el, dt {dt}: {value:.6} (error {:.2e}), {wall:.2} s, {} steps, {} Newton{}",
+                run.error,
+                run.steps,
+                run.newton_iterations,
+                run.warning
+                    .as_deref()
+                    .map(|w| format!(" — warning: {w}"))
+                    .unwrap_or_default()
             ));
             runs.push(run);
         }
@@ -445,6 +454,7 @@ fn rollup(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, Bench
             rejected_steps: sol.report.rejected_steps,
             value: gap,
             error: gap,
+            warning: None,
         });
     }
     Ok(BenchProblem {
@@ -503,6 +513,7 @@ fn bend45(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, Bench
             rejected_steps: sol.report.rejected_steps,
             value: x[2],
             error: d / scale,
+            warning: None,
         });
     }
     Ok(BenchProblem {
@@ -789,7 +800,7 @@ pub fn markdown(r: &BenchReport, command: &str, plot_file: Option<&str>) -> Stri
         s.push_str("|---|---|---|---|---|---|---|---|---|\n");
         for run in &p.runs {
             s.push_str(&format!(
-                "| {} | {} | {} | {:.3} | {} | {} | {} | {} | {:.2e} |\n",
+                "| {} | {} | {} | {:.3} | {} | {} | {} | {} | {:.2e}{} |\n",
                 run.config,
                 run.elements,
                 run.dt
@@ -800,7 +811,12 @@ pub fn markdown(r: &BenchReport, command: &str, plot_file: Option<&str>) -> Stri
                 run.newton_iterations,
                 run.rejected_steps,
                 crate::plot::fmt_num(run.value),
-                run.error
+                run.error,
+                if run.warning.is_some() {
+                    " ⚠ unstable (energy grew)"
+                } else {
+                    ""
+                }
             ));
         }
         s.push('\n');

@@ -670,6 +670,10 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
     if let Some(e) = &err {
         eprintln!("error: {}: {e}", m.path);
     }
+    let warnings: Vec<String> = stats.warning().into_iter().collect();
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", m.path);
+    }
     if args.model.json {
         let mut sensors = serde_json::Map::new();
         for (k, sn) in m.sensors.iter().enumerate() {
@@ -697,6 +701,8 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "steps": stats.steps,
             "rejected_steps": stats.rejected_steps,
             "newton_iterations": stats.newton_iterations,
+            "energy_growth": stats.energy_growth,
+            "warnings": warnings,
             "wall_s": wall,
             "status": if err.is_some() { "failed" } else { "completed" },
             "message": err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
