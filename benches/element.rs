@@ -40,11 +40,39 @@ fn main() {
     println!("internal_force_tangent: {:.2} us/call", dt * 1e6);
     let t = Instant::now();
     for _ in 0..n {
+        let (f, k) = internal_force_tangent_columns(&e, std::hint::black_box(&s));
+        acc += f[0] + k[3][4];
+    }
+    let dt = t.elapsed().as_secs_f64() / n as f64;
+    println!("  (12 dual passes:      {:.2} us/call)", dt * 1e6);
+    let t = Instant::now();
+    for _ in 0..n {
         let (m, sv, c) = inertia(&e, std::hint::black_box(&s), &v);
         acc += m[0][0] + sv[1] + c[2][3];
     }
     let dt = t.elapsed().as_secs_f64() / n as f64;
     println!("inertia (M, S, C):      {:.2} us/call", dt * 1e6);
+    let t = Instant::now();
+    for _ in 0..n {
+        let (m, sv, c) = inertia_columns(&e, std::hint::black_box(&s), &v);
+        acc += m[0][0] + sv[1] + c[2][3];
+    }
+    let dt = t.elapsed().as_secs_f64() / n as f64;
+    println!("  (C by 12 passes:      {:.2} us/call)", dt * 1e6);
+    let t = Instant::now();
+    for _ in 0..n {
+        let (m, sv) = inertia_residual(&e, std::hint::black_box(&s), &v);
+        acc += m[0][0] + sv[1];
+    }
+    let dt = t.elapsed().as_secs_f64() / n as f64;
+    println!("inertia_residual (M, S): {:.2} us/call", dt * 1e6);
+    let t = Instant::now();
+    for _ in 0..n {
+        let m = mass_matrix(&e, std::hint::black_box(&s));
+        acc += m[0][0];
+    }
+    let dt = t.elapsed().as_secs_f64() / n as f64;
+    println!("mass_matrix (M):        {:.2} us/call", dt * 1e6);
     let t = Instant::now();
     for _ in 0..n {
         let f = internal_force(&e, std::hint::black_box(&s));

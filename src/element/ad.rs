@@ -228,3 +228,175 @@ impl Real for Dual {
         self.v
     }
 }
+
+/// v + Σₖ dₖ εₖ (εᵢεⱼ = 0): N directional derivatives carried together, so one pass of
+/// the generic element code gives a whole Jacobian (N = 12: every element dof). Each lane
+/// does exactly the arithmetic of a [`Dual`] pass along its direction, so the results are
+/// bit-identical to N separate passes; the value is computed once instead of N times, and
+/// the lane loops are straight-line array arithmetic that the compiler vectorises.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DualVec<const N: usize> {
+    pub v: f64,
+    pub d: [f64; N],
+}
+
+impl<const N: usize> DualVec<N> {
+    #[inline]
+    pub fn new(v: f64, d: [f64; N]) -> Self {
+        DualVec { v, d }
+    }
+}
+
+impl<const N: usize> Add for DualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        DualVec::new(self.v + o.v, std::array::from_fn(|k| self.d[k] + o.d[k]))
+    }
+}
+impl<const N: usize> Sub for DualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        DualVec::new(self.v - o.v, std::array::from_fn(|k| self.d[k] - o.d[k]))
+    }
+}
+impl<const N: usize> Neg for DualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn neg(self) -> Self {
+        DualVec::new(-self.v, self.d.map(|x| -x))
+    }
+}
+impl<const N: usize> Mul for DualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        DualVec::new(
+            self.v * o.v,
+            std::array::from_fn(|k| self.v * o.d[k] + self.d[k] * o.v),
+        )
+    }
+}
+impl<const N: usize> Div for DualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn div(self, o: Self) -> Self {
+        let inv = 1.0 / o.v;
+        DualVec::new(
+            self.v * inv,
+            std::array::from_fn(|k| (self.d[k] * o.v - self.v * o.d[k]) * inv * inv),
+        )
+    }
+}
+impl<const N: usize> Real for DualVec<N> {
+    #[inline]
+    fn cst(v: f64) -> Self {
+        DualVec::new(v, [0.0; N])
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        let s = self.v.sqrt();
+        DualVec::new(s, self.d.map(|x| 0.5 * x / s))
+    }
+    #[inline]
+    fn value(self) -> f64 {
+        self.v
+    }
+}
+
+/// A hyper-dual number whose second direction has N lanes: v + a ε₁ + Σₖ (bₖ ε₂ₖ +
+/// abₖ ε₁ε₂ₖ). Lane k does exactly the arithmetic of a [`HyperDual`] pass along
+/// (a, e_k), so N mixed second derivatives come from one pass, bit-identical to N passes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HyperDualVec<const N: usize> {
+    pub v: f64,
+    pub a: f64,
+    pub b: [f64; N],
+    pub ab: [f64; N],
+}
+
+impl<const N: usize> HyperDualVec<N> {
+    #[inline]
+    pub fn new(v: f64, a: f64, b: [f64; N], ab: [f64; N]) -> Self {
+        HyperDualVec { v, a, b, ab }
+    }
+    #[inline]
+    fn lift(self, f: f64, f1: f64, f2: f64) -> Self {
+        HyperDualVec {
+            v: f,
+            a: f1 * self.a,
+            b: self.b.map(|x| f1 * x),
+            ab: std::array::from_fn(|k| f1 * self.ab[k] + f2 * self.a * self.b[k]),
+        }
+    }
+}
+
+impl<const N: usize> Add for HyperDualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        HyperDualVec::new(
+            self.v + o.v,
+            self.a + o.a,
+            std::array::from_fn(|k| self.b[k] + o.b[k]),
+            std::array::from_fn(|k| self.ab[k] + o.ab[k]),
+        )
+    }
+}
+impl<const N: usize> Sub for HyperDualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        HyperDualVec::new(
+            self.v - o.v,
+            self.a - o.a,
+            std::array::from_fn(|k| self.b[k] - o.b[k]),
+            std::array::from_fn(|k| self.ab[k] - o.ab[k]),
+        )
+    }
+}
+impl<const N: usize> Neg for HyperDualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn neg(self) -> Self {
+        HyperDualVec::new(-self.v, -self.a, self.b.map(|x| -x), self.ab.map(|x| -x))
+    }
+}
+impl<const N: usize> Mul for HyperDualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        HyperDualVec::new(
+            self.v * o.v,
+            self.v * o.a + self.a * o.v,
+            std::array::from_fn(|k| self.v * o.b[k] + self.b[k] * o.v),
+            std::array::from_fn(|k| {
+                self.v * o.ab[k] + self.a * o.b[k] + self.b[k] * o.a + self.ab[k] * o.v
+            }),
+        )
+    }
+}
+impl<const N: usize> Div for HyperDualVec<N> {
+    type Output = Self;
+    #[inline]
+    fn div(self, o: Self) -> Self {
+        let inv = 1.0 / o.v;
+        self * o.lift(inv, -inv * inv, 2.0 * inv * inv * inv)
+    }
+}
+impl<const N: usize> Real for HyperDualVec<N> {
+    #[inline]
+    fn cst(v: f64) -> Self {
+        HyperDualVec::new(v, 0.0, [0.0; N], [0.0; N])
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        let s = self.v.sqrt();
+        self.lift(s, 0.5 / s, -0.25 / (s * self.v))
+    }
+    #[inline]
+    fn value(self) -> f64 {
+        self.v
+    }
+}

@@ -21,7 +21,10 @@
 //! dx exactly; the remaining integral along the element is polynomial of degree ≤ 6 in ξ
 //! and is done with 4-point Gauss-Legendre, which is exact for degree 7.
 
-use super::ad::{mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, HyperDual, Real, M3, V3};
+use super::ad::{
+    mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, DualVec, HyperDual, HyperDualVec, Real, M3,
+    V3,
+};
 use crate::math::{Mat3, Vec3};
 use crate::model::BeamProps;
 
@@ -337,6 +340,74 @@ fn field_derivs(
     out
 }
 
+/// Node position and frame for [`field_derivs_lanes`]: first direction `da` (the `.a`
+/// part, second-order term as in [`perturb`]), second direction the lanes of [`LANES`]
+/// (`tr`, `rot` as in [`perturb_lanes`]).
+#[inline]
+fn perturb_hd_lanes(
+    x: Vec3,
+    t: &Mat3,
+    da: &[f64],
+    tr: Option<usize>,
+    rot: usize,
+) -> (V3<HyperDualVec<LANES>>, M3<HyperDualVec<LANES>>) {
+    let z = HyperDualVec::new(0.0, 0.0, [0.0; LANES], [0.0; LANES]);
+    let mut xp = [z; 3];
+    for i in 0..3 {
+        xp[i].v = x[i];
+        xp[i].a = da[i];
+        if let Some(l) = tr {
+            xp[i].b[l + i] = 1.0;
+        }
+    }
+    let wa = [da[3], da[4], da[5]];
+    let mut tp = [[z; 3]; 3];
+    for j in 0..3 {
+        let tj = crate::math::col(t, j);
+        let a = crate::math::cross(wa, tj);
+        for i in 0..3 {
+            tp[i][j].v = tj[i];
+            tp[i][j].a = a[i];
+        }
+        for m in 0..3 {
+            let mut wb = [0.0; 3];
+            wb[m] = 1.0;
+            let b = crate::math::cross(wb, tj);
+            let ab = crate::math::cross(wa, b);
+            let ba = crate::math::cross(wb, a);
+            for i in 0..3 {
+                tp[i][j].b[rot + m] = b[i];
+                tp[i][j].ab[rot + m] = 0.5 * (ab[i] + ba[i]);
+            }
+        }
+    }
+    (xp, tp)
+}
+
+/// The mixed second derivatives H(`da`, e_k) of the position fields at the Gauss points
+/// for the lanes of [`LANES`] in one pass (lane results bit-identical to
+/// `field_derivs(.., da, &unit(k))`'s `.ab`, with node 1's translation the negated node
+/// 2's: the fields depend on u1 linearly and otherwise through u2 − u1).
+fn field_derivs_lanes(
+    e: &ElemData,
+    s: &ElemState,
+    t1: &Mat3,
+    t2: &Mat3,
+    da: &Vec12,
+) -> [[[HyperDualVec<LANES>; 3]; 3]; 4] {
+    let (u1, tt1) = perturb_hd_lanes(s.u1, t1, &da[0..6], None, LANE_R1);
+    let (u2, tt2) = perturb_hd_lanes(s.u2, t2, &da[6..12], Some(LANE_T2), LANE_R2);
+    let kin = kinematics(e.chord0, e.l0, u1, u2, &tt1, &tt2);
+    let c0 = e.chord0.map(HyperDualVec::cst);
+    let chord = vadd(c0, vsub(u2, u1));
+    let z = HyperDualVec::new(0.0, 0.0, [0.0; LANES], [0.0; LANES]);
+    let mut out = [[[z; 3]; 3]; 4];
+    for (g, (xi, _)) in GAUSS4.iter().enumerate() {
+        out[g] = section_fields(&kin, u1, chord, *xi);
+    }
+    out
+}
+
 /// μ-weights of the three position fields per unit length: ρA for a, ρI_z for b
 /// (multiplies y), ρI_y for c (multiplies z).
 #[inline]
@@ -362,15 +433,25 @@ fn gradients(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3) -> [[[Vec3; 3]; 
 fn mass_from_gradients(e: &ElemData, g: &[[[Vec3; 3]; 4]; NDOF]) -> Mat12 {
     let w = field_weights(&e.props);
     let mut m = [[0.0; NDOF]; NDOF];
-    for j in 0..NDOF {
-        for k in j..NDOF {
-            let mut acc = 0.0;
-            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
-                for f in 0..3 {
-                    acc += wg * w[f] * crate::math::dot(g[j][gp][f], g[k][gp][f]);
+    // M = Σ over Gauss points and fields of w Gᵀ G, G the 3 × 12 field gradient: rank-3
+    // updates over rows of 12 contiguous dofs, which vectorise (the former per-pair 3-term
+    // dot products did not)
+    for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
+        for (f, wf) in w.iter().enumerate() {
+            let sc = wg * wf * e.l0;
+            let rows: [[f64; NDOF]; 3] =
+                std::array::from_fn(|c| std::array::from_fn(|j| g[j][gp][f][c]));
+            for (j, mj) in m.iter_mut().enumerate() {
+                let a = [sc * rows[0][j], sc * rows[1][j], sc * rows[2][j]];
+                for (k, mjk) in mj.iter_mut().enumerate() {
+                    *mjk += a[0] * rows[0][k] + a[1] * rows[1][k] + a[2] * rows[2][k];
                 }
             }
-            m[j][k] = acc * e.l0;
+        }
+    }
+    // exactly symmetric (the two triangles round differently)
+    for j in 0..NDOF {
+        for k in j + 1..NDOF {
             m[k][j] = m[j][k];
         }
     }
@@ -394,6 +475,51 @@ pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) 
     let m = mass_from_gradients(e, &g);
     let w = field_weights(&e.props);
     // S_j = ∫ μ g_j · H(v, v), H the second derivative of the position field
+    let project = |h: &[[[HyperDual; 3]; 3]; 4], out: &mut Vec12, scale: f64| {
+        for (j, oj) in out.iter_mut().enumerate() {
+            let mut acc = 0.0;
+            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
+                for f in 0..3 {
+                    let hv = [h[gp][f][0].ab, h[gp][f][1].ab, h[gp][f][2].ab];
+                    acc += wg * w[f] * crate::math::dot(g[j][gp][f], hv);
+                }
+            }
+            *oj = scale * acc * e.l0;
+        }
+    };
+    let mut sv = [0.0; NDOF];
+    project(&field_derivs(e, s, &t1, &t2, v, v), &mut sv, 1.0);
+    let mut c = [[0.0; NDOF]; NDOF];
+    if v.iter().any(|x| *x != 0.0) {
+        // C_jk = 2 ∫ μ g_j · H(v, e_k): all 12 columns from one lane-vector pass
+        let h = field_derivs_lanes(e, s, &t1, &t2, v);
+        for (j, cj) in c.iter_mut().enumerate() {
+            let mut acc = [0.0; LANES];
+            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
+                for f in 0..3 {
+                    let gj = g[j][gp][f];
+                    let hh = &h[gp][f];
+                    for (l, al) in acc.iter_mut().enumerate() {
+                        let hv = [hh[0].ab[l], hh[1].ab[l], hh[2].ab[l]];
+                        *al += wg * w[f] * crate::math::dot(gj, hv);
+                    }
+                }
+            }
+            for (k, cjk) in cj.iter_mut().enumerate() {
+                let (l, sg) = lane_of_dof(k);
+                *cjk = sg * (2.0 * acc[l] * e.l0);
+            }
+        }
+    }
+    (m, sv, c)
+}
+
+/// Reference for the C of [`inertia`]: one hyper-dual pass per column.
+pub fn inertia_columns(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradients_closed(e, s, &t1, &t2);
+    let m = mass_from_gradients(e, &g);
+    let w = field_weights(&e.props);
     let project = |h: &[[[HyperDual; 3]; 3]; 4], out: &mut Vec12, scale: f64| {
         for (j, oj) in out.iter_mut().enumerate() {
             let mut acc = 0.0;
@@ -654,11 +780,83 @@ fn perturb_dual(x: Vec3, t: &Mat3, d: &[f64]) -> (V3<Dual>, M3<Dual>) {
     (xp, tp)
 }
 
+/// Derivative lanes of the vector-dual passes: node 2's translation (3), node 1's spin
+/// (3), node 2's spin (3). Node 1's translation needs no lanes: the element sees the node
+/// positions only through the chord change u2 − u1 (and, in the position field, linearly
+/// through u1), so every derivative along u1 that the tangents use is the negated one
+/// along u2, exactly (negating the seeds negates every lane bit for bit).
+const LANES: usize = 9;
+const LANE_T2: usize = 0;
+const LANE_R1: usize = 3;
+const LANE_R2: usize = 6;
+
+/// The element-dof column of each K/C column from lane results: (lane, sign).
+#[inline]
+fn lane_of_dof(j: usize) -> (usize, f64) {
+    match j / 3 {
+        0 => (LANE_T2 + j % 3, -1.0),
+        1 => (LANE_R1 + j % 3, 1.0),
+        2 => (LANE_T2 + j % 3, 1.0),
+        _ => (LANE_R2 + j % 3, 1.0),
+    }
+}
+
+/// Node position and frame with the vector-dual lanes of [`LANES`]: `tr` the lane of the
+/// position's x axis (None: no position lanes), `rot` the lane of the spin about x.
+#[inline]
+fn perturb_lanes(
+    x: Vec3,
+    t: &Mat3,
+    tr: Option<usize>,
+    rot: usize,
+) -> (V3<DualVec<LANES>>, M3<DualVec<LANES>>) {
+    let xp = [0, 1, 2].map(|i| {
+        let mut d = [0.0; LANES];
+        if let Some(l) = tr {
+            d[l + i] = 1.0;
+        }
+        DualVec::new(x[i], d)
+    });
+    let mut tp = [[DualVec::new(0.0, [0.0; LANES]); 3]; 3];
+    for j in 0..3 {
+        let tj = crate::math::col(t, j);
+        for i in 0..3 {
+            tp[i][j].v = tj[i];
+        }
+        for m in 0..3 {
+            let mut w = [0.0; 3];
+            w[m] = 1.0;
+            let a = crate::math::cross(w, tj);
+            for i in 0..3 {
+                tp[i][j].d[rot + m] = a[i];
+            }
+        }
+    }
+    (xp, tp)
+}
+
 /// Internal force and its consistent tangent K_jk = ∂f_j/∂q_k, the state perturbed
-/// multiplicatively (T ← exp(δπ̃) T): column k is the dual-number derivative of the
-/// closed-form force along dof k, so the non-commutativity of spatial spins is included.
-/// K is symmetric at equilibrium states only.
+/// multiplicatively (T ← exp(δπ̃) T): column k is the derivative of the closed-form force
+/// along dof k (one vector-dual pass for all columns), so the non-commutativity of
+/// spatial spins is included. K is symmetric at equilibrium states only. Bit-identical
+/// to [`internal_force_tangent_columns`].
 pub fn internal_force_tangent(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
+    let (t1, t2) = node_frames(e, s);
+    let f = force_generic(e, s.u1, s.u2, &t1, &t2);
+    let (u1, tt1) = perturb_lanes(s.u1, &t1, None, LANE_R1);
+    let (u2, tt2) = perturb_lanes(s.u2, &t2, Some(LANE_T2), LANE_R2);
+    let fd = force_generic(e, u1, u2, &tt1, &tt2);
+    let k = std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            let (l, sg) = lane_of_dof(c);
+            sg * fd[r].d[l]
+        })
+    });
+    (f, k)
+}
+
+/// Reference for [`internal_force_tangent`]: one [`Dual`] pass per column.
+pub fn internal_force_tangent_columns(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
     let (t1, t2) = node_frames(e, s);
     let f = force_generic(e, s.u1, s.u2, &t1, &t2);
     let mut k = [[0.0; NDOF]; NDOF];
