@@ -432,22 +432,33 @@ fn gradients(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3) -> [[[Vec3; 3]; 
 
 fn mass_from_gradients(e: &ElemData, g: &[[[Vec3; 3]; 4]; NDOF]) -> Mat12 {
     let w = field_weights(&e.props);
-    let mut m = [[0.0; NDOF]; NDOF];
-    // M = Σ over Gauss points and fields of w Gᵀ G, G the 3 × 12 field gradient: rank-3
-    // updates over rows of 12 contiguous dofs, which vectorise (the former per-pair 3-term
-    // dot products did not)
+    // M = Σ over the 12 (Gauss point, field) pairs q of w_q G_qᵀ G_q, G_q the 3 × 12
+    // field gradient. Laid out as 36 rows of 12 contiguous dofs, each row of M is 36
+    // length-12 multiply-adds kept in registers: this vectorises, where per-entry 3-term
+    // dot products did not.
+    let mut rows = [[0.0; NDOF]; 36];
+    let mut wq = [0.0; 36];
     for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
         for (f, wf) in w.iter().enumerate() {
-            let sc = wg * wf * e.l0;
-            let rows: [[f64; NDOF]; 3] =
-                std::array::from_fn(|c| std::array::from_fn(|j| g[j][gp][f][c]));
-            for (j, mj) in m.iter_mut().enumerate() {
-                let a = [sc * rows[0][j], sc * rows[1][j], sc * rows[2][j]];
-                for (k, mjk) in mj.iter_mut().enumerate() {
-                    *mjk += a[0] * rows[0][k] + a[1] * rows[1][k] + a[2] * rows[2][k];
+            for c in 0..3 {
+                let q = 9 * gp + 3 * f + c;
+                wq[q] = wg * wf * e.l0;
+                for (j, r) in rows[q].iter_mut().enumerate() {
+                    *r = g[j][gp][f][c];
                 }
             }
         }
+    }
+    let mut m = [[0.0; NDOF]; NDOF];
+    for (j, mj) in m.iter_mut().enumerate() {
+        let mut acc = [0.0; NDOF];
+        for (r, wr) in rows.iter().zip(&wq) {
+            let a = wr * r[j];
+            for (x, y) in acc.iter_mut().zip(r) {
+                *x += a * y;
+            }
+        }
+        *mj = acc;
     }
     // exactly symmetric (the two triangles round differently)
     for j in 0..NDOF {

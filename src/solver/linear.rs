@@ -8,18 +8,38 @@ use crate::model::Model;
 use std::sync::Arc;
 use std::time::Instant;
 
+/// Scatters into the pattern's value array. The assembly adds its entries in the same
+/// order on every call (same model, same code path), so the slot of the i-th add is
+/// remembered and reused after checking that (row, col) match: one comparison instead of
+/// a binary search per entry. A changed order (a hinge locked) just re-searches.
 struct SparseSink<'a> {
     pattern: &'a SparsePattern,
     values: &'a mut [f64],
+    cache: &'a mut Vec<(u32, u32, u32)>,
+    next: usize,
 }
 impl Sink for SparseSink<'_> {
     #[inline]
     fn add(&mut self, row: usize, col: usize, v: f64) {
+        let i = self.next;
+        self.next += 1;
+        if let Some(&(r, c, k)) = self.cache.get(i) {
+            if r as usize == row && c as usize == col {
+                self.values[k as usize] += v;
+                return;
+            }
+        }
         // the pattern came from the same assembly code, so every entry has a slot
         let k = self
             .pattern
             .slot(row, col)
             .expect("entry outside the assembled pattern");
+        let e = (row as u32, col as u32, k as u32);
+        if i < self.cache.len() {
+            self.cache[i] = e;
+        } else {
+            self.cache.push(e);
+        }
         self.values[k] += v;
     }
 }
@@ -110,6 +130,8 @@ pub struct NewtonSystem {
     /// residual by equation
     pub r: Vec<f64>,
     pub times: StageTimes,
+    /// (row, col, slot) of each scatter call in assembly order (see `SparseSink`)
+    slot_cache: Vec<(u32, u32, u32)>,
 }
 
 impl NewtonSystem {
@@ -139,6 +161,7 @@ impl NewtonSystem {
         };
         Ok(NewtonSystem {
             values: vec![0.0; pattern.nnz()],
+            slot_cache: Vec::new(),
             pattern,
             lu,
             gen,
@@ -162,6 +185,8 @@ impl NewtonSystem {
             let mut sink = SparseSink {
                 pattern: &self.pattern,
                 values: &mut self.values,
+                cache: &mut self.slot_cache,
+                next: 0,
             };
             asm.evaluate(model, s, c, &mut self.gen, Some(&mut sink))
         } else {
