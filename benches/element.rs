@@ -37,6 +37,7 @@ fn main() {
         acc += f[0] + k[3][4];
     }
     let dt = t.elapsed().as_secs_f64() / n as f64;
+    let t_tangent = dt;
     println!("internal_force_tangent: {:.2} us/call", dt * 1e6);
     let t = Instant::now();
     for _ in 0..n {
@@ -51,6 +52,7 @@ fn main() {
         acc += m[0][0] + sv[1] + c[2][3];
     }
     let dt = t.elapsed().as_secs_f64() / n as f64;
+    let t_inertia = dt;
     println!("inertia (M, S, C):      {:.2} us/call", dt * 1e6);
     let t = Instant::now();
     for _ in 0..n {
@@ -65,6 +67,7 @@ fn main() {
         acc += m[0][0] + sv[1];
     }
     let dt = t.elapsed().as_secs_f64() / n as f64;
+    let t_residual = dt;
     println!("inertia_residual (M, S): {:.2} us/call", dt * 1e6);
     let t = Instant::now();
     for _ in 0..n {
@@ -83,4 +86,216 @@ fn main() {
         "internal_force:         {:.2} us/call   ({acc:.1})",
         dt * 1e6
     );
+    flop_report(&e, &s, t_tangent, t_inertia, t_residual);
+}
+
+// ---------------------------------------------------------------------------------------
+// Floating-point operation count against the machine's peak.
+//
+// No hardware counters in this VM (perf reports `cycles` as not supported), so the flops
+// are counted by running the generic element code on a counting scalar, per operation
+// kind, and converting each kind to flops for the number type the real pass uses (a
+// [`DualVec<9>`] multiply is 1 + 3·9 flops, …); the plain-f64 loops around them (mass
+// rank updates, projections, closed-form field gradients) are counted from their loop
+// bounds. The peak is measured, not taken from a data sheet: independent AVX2 FMA chains.
+// ---------------------------------------------------------------------------------------
+
+use latdyn::element::ad::{Real, M3, V3};
+use std::cell::Cell;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+thread_local! {
+    /// [add/sub/neg, mul, div, sqrt]
+    static OPS: Cell<[u64; 4]> = const { Cell::new([0; 4]) };
+}
+fn bump(k: usize) {
+    OPS.with(|c| {
+        let mut v = c.get();
+        v[k] += 1;
+        c.set(v);
+    });
+}
+fn take_ops() -> [u64; 4] {
+    OPS.with(|c| c.replace([0; 4]))
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Cnt(f64);
+impl Add for Cnt {
+    type Output = Cnt;
+    fn add(self, o: Cnt) -> Cnt {
+        bump(0);
+        Cnt(self.0 + o.0)
+    }
+}
+impl Sub for Cnt {
+    type Output = Cnt;
+    fn sub(self, o: Cnt) -> Cnt {
+        bump(0);
+        Cnt(self.0 - o.0)
+    }
+}
+impl Neg for Cnt {
+    type Output = Cnt;
+    fn neg(self) -> Cnt {
+        bump(0);
+        Cnt(-self.0)
+    }
+}
+impl Mul for Cnt {
+    type Output = Cnt;
+    fn mul(self, o: Cnt) -> Cnt {
+        bump(1);
+        Cnt(self.0 * o.0)
+    }
+}
+impl Div for Cnt {
+    type Output = Cnt;
+    fn div(self, o: Cnt) -> Cnt {
+        bump(2);
+        Cnt(self.0 / o.0)
+    }
+}
+impl Real for Cnt {
+    fn cst(v: f64) -> Cnt {
+        Cnt(v)
+    }
+    fn sqrt(self) -> Cnt {
+        bump(3);
+        Cnt(self.0.sqrt())
+    }
+    fn value(self) -> f64 {
+        self.0
+    }
+}
+
+/// Flops of one pass given its operation counts, per number type: [add, mul, div, sqrt]
+/// costs as written in `latdyn::element::ad`.
+fn flops(ops: [u64; 4], cost: [u64; 4]) -> u64 {
+    ops.iter().zip(cost).map(|(o, c)| o * c).sum()
+}
+const F64: [u64; 4] = [1, 1, 1, 1];
+const fn dual_vec(n: u64) -> [u64; 4] {
+    [1 + n, 1 + 3 * n, 2 + 5 * n, 1 + 2 * n]
+}
+const HYPER_DUAL: [u64; 4] = [4, 14, 26, 10];
+const fn hyper_dual_vec(n: u64) -> [u64; 4] {
+    [2 + 2 * n, 4 + 10 * n, 11 + 15 * n, 5 + 5 * n]
+}
+
+fn counted_frames(e: &ElemData, s: &ElemState) -> (V3<Cnt>, V3<Cnt>, M3<Cnt>, M3<Cnt>) {
+    let t1 = mat_mul(&s.r1, &e.frame0);
+    let t2 = mat_mul(&s.r2, &e.frame0);
+    let c = |t: Mat3| t.map(|r| r.map(Cnt));
+    (s.u1.map(Cnt), s.u2.map(Cnt), c(t1), c(t2))
+}
+
+/// Operations of the closed-form internal force (one scalar pass).
+fn force_ops(e: &ElemData, s: &ElemState) -> [u64; 4] {
+    let (u1, u2, t1, t2) = counted_frames(e, s);
+    take_ops();
+    std::hint::black_box(force_generic(e, u1, u2, &t1, &t2));
+    take_ops()
+}
+
+/// Operations of one pass of the position fields at the 4 Gauss points.
+fn field_ops(e: &ElemData, s: &ElemState) -> [u64; 4] {
+    let (u1, u2, t1, t2) = counted_frames(e, s);
+    take_ops();
+    let kin = kinematics(e.chord0, e.l0, u1, u2, &t1, &t2);
+    let chord = [0, 1, 2].map(|i| Cnt(e.chord0[i]) + (u2[i] - u1[i]));
+    for (xi, _) in GAUSS4 {
+        std::hint::black_box(section_fields(&kin, u1, chord, xi));
+    }
+    take_ops()
+}
+
+/// Operations of the closed-form field gradient (`gradient` plus the per-dof loop of
+/// `gradients_closed`, counted from its source: per Gauss point 3 frame products and the
+/// Hermite factors, per dof and Gauss point 3 cross products, 3 frame products, the
+/// bending/twist derivative terms).
+fn gradient_flops(e: &ElemData, s: &ElemState) -> u64 {
+    let (u1, u2, t1, t2) = counted_frames(e, s);
+    take_ops();
+    std::hint::black_box(gradient(e.chord0, e.l0, u1, u2, &t1, &t2));
+    let g = flops(take_ops(), F64);
+    let per_gp = 3 * 15 + 25;
+    let per_dof = 3 * 9 + 3 * 15 + 6 + 8 + 8 + 3 * 3 + 2;
+    g + 4 * (per_gp + 12 * per_dof)
+}
+
+/// Sustained f64 FMA throughput of one core: 12 independent 4-wide FMA chains (enough
+/// to cover the FMA latency on two FMA ports).
+fn peak_gflops() -> Option<f64> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            // SAFETY: the features were detected at run time
+            return Some(unsafe { fma_peak() });
+        }
+    }
+    None
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn fma_peak() -> f64 {
+    use std::arch::x86_64::*;
+    let n = 50_000_000u64;
+    let a = _mm256_set1_pd(0.999_999_9);
+    let b = _mm256_set1_pd(1e-9);
+    let mut acc = [_mm256_set1_pd(1.0); 12];
+    let t = Instant::now();
+    for _ in 0..n / 12 {
+        for x in acc.iter_mut() {
+            *x = _mm256_fmadd_pd(*x, a, b);
+        }
+    }
+    let dt = t.elapsed().as_secs_f64();
+    let mut sum = 0.0;
+    for x in acc {
+        let mut o = [0.0; 4];
+        _mm256_storeu_pd(o.as_mut_ptr(), x);
+        sum += o.iter().sum::<f64>();
+    }
+    std::hint::black_box(sum);
+    // one FMA = 2 flops on 4 lanes
+    ((n / 12) * 12 * 8) as f64 / dt * 1e-9
+}
+
+/// Print flops per call, GFLOP/s at the measured call times, and the fraction of the peak.
+fn flop_report(e: &ElemData, s: &ElemState, t_tangent: f64, t_inertia: f64, t_residual: f64) {
+    let f = force_ops(e, s);
+    let fld = field_ops(e, s);
+    let grad = gradient_flops(e, s);
+    // internal force + tangent: one f64 pass and one 9-lane vector-dual pass
+    let tangent = flops(f, F64) + flops(f, dual_vec(9));
+    // mass: 12 rows × 36 (Gauss point, field, component) rank-1 updates of 12 entries
+    let mass = grad + 12 * 36 * (1 + 2 * 12);
+    // S: one hyper-dual field pass and 12 × 12 projections (dot 5, weights 3)
+    let svec = flops(fld, HYPER_DUAL) + 12 * 12 * 8;
+    // C: one 9-lane hyper-dual field pass and 12 × 12 × 9 projections
+    let cmat = flops(fld, hyper_dual_vec(9)) + 12 * 12 * 9 * 8;
+    let inertia = mass + svec + cmat;
+    let residual = mass + svec;
+    let peak = peak_gflops();
+    println!("\nfloating-point work per element call (counted) and achieved rate, one core:");
+    for (name, fl, t) in [
+        ("internal_force_tangent", tangent, t_tangent),
+        ("inertia (M, S, C)", inertia, t_inertia),
+        ("inertia_residual (M, S)", residual, t_residual),
+    ] {
+        let g = fl as f64 / t * 1e-9;
+        let frac = peak.map_or("n/a".to_string(), |p| format!("{:.1} %", 100.0 * g / p));
+        println!(
+            "  {name:<24} {fl:>7} flop  {:>6.2} us  {g:>5.2} GFLOP/s  {frac} of peak",
+            t * 1e6
+        );
+    }
+    match peak {
+        Some(p) => {
+            println!("  peak (12 independent AVX2 FMA chains, measured): {p:.1} GFLOP/s per core")
+        }
+        None => println!("  peak: AVX2/FMA not available, not measured"),
+    }
 }

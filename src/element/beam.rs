@@ -752,9 +752,16 @@ fn energy_partials<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> ([R; 6], R) {
     )
 }
 
-/// Internal force f = ∂U/∂q from the closed-form gradient, generic over the scalar.
+/// Internal force f = ∂U/∂q from the closed-form gradient, generic over the scalar (public
+/// so the element bench can count its floating-point operations).
 #[inline]
-fn force_generic<R: Real>(e: &ElemData, u1: V3<R>, u2: V3<R>, t1: &M3<R>, t2: &M3<R>) -> [R; NDOF] {
+pub fn force_generic<R: Real>(
+    e: &ElemData,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+) -> [R; NDOF] {
     let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
     let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
     let mut f = [R::cst(0.0); NDOF];
