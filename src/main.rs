@@ -39,7 +39,7 @@ enum Verb {
     /// Plot sensor histories of a results file
     Plot(PlotArgs),
     /// The speed-against-error suite: reference problems at several resolutions, wall
-    /// time beside error, ensemble throughput; writes docs/bench/results.{md,json,svg}
+    /// time beside error, ensemble throughput; writes docs/bench/results.{md,json} and work_precision.png
     Bench(BenchArgs),
 }
 

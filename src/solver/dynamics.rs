@@ -132,6 +132,10 @@ pub struct Integrator<'m> {
     /// history, e.g. at the start or after a hinge locked), for the predictor
     prev_a: Vec<f64>,
     prev_h: f64,
+    /// the last two acceleration changes point the same way (positive inner product)
+    trend_smooth: bool,
+    /// the last acceleration change a_{n} − a_{n−1}
+    prev_da: Vec<f64>,
 }
 
 impl<'m> Integrator<'m> {
@@ -161,6 +165,8 @@ impl<'m> Integrator<'m> {
             prev_q: vec![0.0; nd],
             prev_a: vec![0.0; nd],
             prev_h: 0.0,
+            trend_smooth: false,
+            prev_da: vec![0.0; nd],
             asm,
             sys,
             s,
@@ -254,14 +260,18 @@ impl<'m> Integrator<'m> {
         let gamma_p = h * p.gamma * cfac;
         let coeffs = Coeffs::dynamic(beta_p, gamma_p, 1.0);
         // unknown: accelerations of the active dofs at t_{n+1}; predictor: the linear
-        // extrapolation of the last two steps' accelerations (a_n where there is no
-        // history). Accelerations that turn with the structure (centripetal ones on a
+        // extrapolation of the last two steps' accelerations when they trend smoothly,
+        // else a_n. Accelerations that turn with the structure (centripetal ones on a
         // rotor) make a constant predictor wrong by O(hΩ|a|), and through the axial
         // stiffness that small position error becomes a large spurious axial force, which
         // both inflates the first residual and spoils the geometric stiffness of the
         // Jacobian that modified Newton then reuses; extrapolation cuts it to O((hΩ)²|a|).
+        // A history that alternates step to step (a lightly damped mode near the Nyquist
+        // frequency, a transient just after a start or a lock) would be amplified
+        // instead, so extrapolation is used only while successive acceleration changes
+        // point the same way.
         acc.clone_from(&start.a);
-        if self.prev_h > 0.0 {
+        if self.prev_h > 0.0 && self.trend_smooth {
             let r = h / self.prev_h;
             for (a, pa) in acc.iter_mut().zip(&self.prev_a) {
                 *a += r * (*a - pa);
@@ -318,6 +328,14 @@ impl<'m> Integrator<'m> {
                     };
                 }
                 std::mem::swap(&mut self.s, s);
+                // the change of this step against the previous one's
+                let mut dot = 0.0;
+                for ((pd, a), a0) in self.prev_da.iter_mut().zip(&self.s.a).zip(&start.a) {
+                    let d = a - a0;
+                    dot += d * *pd;
+                    *pd = d;
+                }
+                self.trend_smooth = self.prev_h > 0.0 && dot > 0.0;
                 self.prev_a.clone_from(&start.a);
                 self.prev_h = h;
                 self.energies.kinetic = info.kinetic_energy;
