@@ -268,6 +268,8 @@ impl<const N: usize> Neg for DualVec<N> {
         DualVec::new(-self.v, self.d.map(|x| -x))
     }
 }
+// the product rule adds inside a multiplication
+#[allow(clippy::suspicious_arithmetic_impl)]
 impl<const N: usize> Mul for DualVec<N> {
     type Output = Self;
     #[inline]
@@ -278,6 +280,8 @@ impl<const N: usize> Mul for DualVec<N> {
         )
     }
 }
+// the product rule adds inside a multiplication
+#[allow(clippy::suspicious_arithmetic_impl)]
 impl<const N: usize> Div for DualVec<N> {
     type Output = Self;
     #[inline]
@@ -363,6 +367,8 @@ impl<const N: usize> Neg for HyperDualVec<N> {
         HyperDualVec::new(-self.v, -self.a, self.b.map(|x| -x), self.ab.map(|x| -x))
     }
 }
+// the product rule adds inside a multiplication
+#[allow(clippy::suspicious_arithmetic_impl)]
 impl<const N: usize> Mul for HyperDualVec<N> {
     type Output = Self;
     #[inline]
@@ -377,6 +383,8 @@ impl<const N: usize> Mul for HyperDualVec<N> {
         )
     }
 }
+// the product rule adds inside a multiplication
+#[allow(clippy::suspicious_arithmetic_impl)]
 impl<const N: usize> Div for HyperDualVec<N> {
     type Output = Self;
     #[inline]
