@@ -476,30 +476,46 @@ pub fn mass_matrix_ad(e: &ElemData, s: &ElemState) -> Mat12 {
     mass_from_gradients(e, &gradients(e, s, &t1, &t2))
 }
 
+/// Field gradients g at the Gauss points (all 12 dofs).
+type FieldGrads = [[[Vec3; 3]; 4]; NDOF];
+
+/// ∫ μ g_j · h over the element for every dof j, with h the `.ab` (mixed second
+/// derivative) parts of the position fields at the Gauss points.
+fn project_ab(e: &ElemData, g: &FieldGrads, h: &[[[HyperDual; 3]; 3]; 4]) -> Vec12 {
+    let w = field_weights(&e.props);
+    std::array::from_fn(|j| {
+        let mut acc = 0.0;
+        for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
+            for f in 0..3 {
+                let hv = [h[gp][f][0].ab, h[gp][f][1].ab, h[gp][f][2].ab];
+                acc += wg * w[f] * crate::math::dot(g[j][gp][f], hv);
+            }
+        }
+        acc * e.l0
+    })
+}
+
+/// What every inertia evaluation shares: node frames, field gradients, M and S.
+fn mass_and_quadratic(
+    e: &ElemData,
+    s: &ElemState,
+    v: &Vec12,
+) -> ((Mat3, Mat3), FieldGrads, Mat12, Vec12) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradients_closed(e, s, &t1, &t2);
+    let m = mass_from_gradients(e, &g);
+    // S_j = ∫ μ g_j · H(v, v), H the second derivative of the position field
+    let sv = project_ab(e, &g, &field_derivs(e, s, &t1, &t2, v, v));
+    ((t1, t2), g, m, sv)
+}
+
 /// Inertia terms at nodal velocities `v` = (ẋ1, ω1, ẋ2, ω2) (spatial angular velocities):
 /// the mass matrix M, the quadratic-velocity vector S = ∫ μ gᵀ ġ q̇ dΩ (paper eq. 19), and
 /// its velocity derivative C = ∂S/∂v (gyroscopic/Coriolis matrix for the Newton Jacobian).
 /// The inertial nodal force is M a + S with a = (ẍ1, α1, ẍ2, α2).
 pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
-    let (t1, t2) = node_frames(e, s);
-    let g = gradients_closed(e, s, &t1, &t2);
-    let m = mass_from_gradients(e, &g);
+    let ((t1, t2), g, m, sv) = mass_and_quadratic(e, s, v);
     let w = field_weights(&e.props);
-    // S_j = ∫ μ g_j · H(v, v), H the second derivative of the position field
-    let project = |h: &[[[HyperDual; 3]; 3]; 4], out: &mut Vec12, scale: f64| {
-        for (j, oj) in out.iter_mut().enumerate() {
-            let mut acc = 0.0;
-            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
-                for f in 0..3 {
-                    let hv = [h[gp][f][0].ab, h[gp][f][1].ab, h[gp][f][2].ab];
-                    acc += wg * w[f] * crate::math::dot(g[j][gp][f], hv);
-                }
-            }
-            *oj = scale * acc * e.l0;
-        }
-    };
-    let mut sv = [0.0; NDOF];
-    project(&field_derivs(e, s, &t1, &t2, v, v), &mut sv, 1.0);
     let mut c = [[0.0; NDOF]; NDOF];
     if v.iter().any(|x| *x != 0.0) {
         // C_jk = 2 ∫ μ g_j · H(v, e_k): all 12 columns from one lane-vector pass
@@ -527,31 +543,13 @@ pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) 
 
 /// Reference for the C of [`inertia`]: one hyper-dual pass per column.
 pub fn inertia_columns(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
-    let (t1, t2) = node_frames(e, s);
-    let g = gradients_closed(e, s, &t1, &t2);
-    let m = mass_from_gradients(e, &g);
-    let w = field_weights(&e.props);
-    let project = |h: &[[[HyperDual; 3]; 3]; 4], out: &mut Vec12, scale: f64| {
-        for (j, oj) in out.iter_mut().enumerate() {
-            let mut acc = 0.0;
-            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
-                for f in 0..3 {
-                    let hv = [h[gp][f][0].ab, h[gp][f][1].ab, h[gp][f][2].ab];
-                    acc += wg * w[f] * crate::math::dot(g[j][gp][f], hv);
-                }
-            }
-            *oj = scale * acc * e.l0;
-        }
-    };
-    let mut sv = [0.0; NDOF];
-    project(&field_derivs(e, s, &t1, &t2, v, v), &mut sv, 1.0);
+    let ((t1, t2), g, m, sv) = mass_and_quadratic(e, s, v);
     let mut c = [[0.0; NDOF]; NDOF];
     if v.iter().any(|x| *x != 0.0) {
         for k in 0..NDOF {
-            let mut colk = [0.0; NDOF];
-            project(&field_derivs(e, s, &t1, &t2, v, &unit(k)), &mut colk, 2.0);
+            let colk = project_ab(e, &g, &field_derivs(e, s, &t1, &t2, v, &unit(k)));
             for j in 0..NDOF {
-                c[j][k] = colk[j];
+                c[j][k] = 2.0 * colk[j];
             }
         }
     }
@@ -561,22 +559,7 @@ pub fn inertia_columns(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12,
 /// M and S of [`inertia`] without C (for residual-only Newton iterations); the same
 /// arithmetic as there, so M and S are bit-identical to [`inertia`]'s.
 pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12) {
-    let (t1, t2) = node_frames(e, s);
-    let g = gradients_closed(e, s, &t1, &t2);
-    let m = mass_from_gradients(e, &g);
-    let w = field_weights(&e.props);
-    let h = field_derivs(e, s, &t1, &t2, v, v);
-    let mut sv = [0.0; NDOF];
-    for (j, oj) in sv.iter_mut().enumerate() {
-        let mut acc = 0.0;
-        for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
-            for f in 0..3 {
-                let hv = [h[gp][f][0].ab, h[gp][f][1].ab, h[gp][f][2].ab];
-                acc += wg * w[f] * crate::math::dot(g[j][gp][f], hv);
-            }
-        }
-        *oj = acc * e.l0;
-    }
+    let (_, _, m, sv) = mass_and_quadratic(e, s, v);
     (m, sv)
 }
 
