@@ -132,6 +132,9 @@ pub struct Integrator<'m> {
     /// history, e.g. at the start or after a hinge locked), for the predictor
     prev_a: Vec<f64>,
     prev_h: f64,
+    /// size of the model's coordinates (largest node distance from the origin, at least
+    /// 1 for the angles), for the round-off floor of Newton corrections
+    coord_scale: f64,
     /// the last two acceleration changes point the same way (positive inner product)
     trend_smooth: bool,
     /// the last acceleration change a_{n} − a_{n−1}
@@ -165,6 +168,10 @@ impl<'m> Integrator<'m> {
             prev_q: vec![0.0; nd],
             prev_a: vec![0.0; nd],
             prev_h: 0.0,
+            coord_scale: model
+                .x0
+                .iter()
+                .fold(1.0f64, |m, x| m.max(crate::math::norm(*x))),
             trend_smooth: false,
             prev_da: vec![0.0; nd],
             asm,
@@ -283,6 +290,8 @@ impl<'m> Integrator<'m> {
         }
         let mut conv = Convergence::new(model.solver.tol, self.asm.eval.unit_roundoff());
         let mut prev_res = f64::INFINITY;
+        // coordinate change of the last Newton correction (positions and angles)
+        let mut last_correction = f64::INFINITY;
         for it in 0..model.solver.max_iter.max(1) {
             // rebuild the state at t_{n+1} from the step start and the current accelerations
             s.clone_from(start);
@@ -317,7 +326,9 @@ impl<'m> Integrator<'m> {
             if !res.is_finite() {
                 return Ok(None);
             }
-            if conv.converged(res, info.force_scale) {
+            if conv.converged(res, info.force_scale)
+                || conv.stalled_at_roundoff(last_correction, self.coord_scale)
+            {
                 if !self.asm.deformation_in_range(model, s) {
                     return Ok(None);
                 }
@@ -365,6 +376,7 @@ impl<'m> Integrator<'m> {
             if self.sys.solve_neg_residual(&mut self.dx).is_err() {
                 return Ok(None);
             }
+            last_correction = beta_p * norm_inf(&self.dx);
             for (d, dof) in model.dofs.iter().enumerate() {
                 if let Some(e) = dof.eq {
                     acc[d] += self.dx[e];

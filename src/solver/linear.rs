@@ -87,6 +87,8 @@ pub struct Convergence {
     tol: f64,
     noise: f64,
     prev: f64,
+    u: f64,
+    stalled: bool,
 }
 
 impl Convergence {
@@ -107,7 +109,24 @@ impl Convergence {
             tol: tol.max(Self::TIGHT * u),
             noise: Self::NOISE * u,
             prev: f64::INFINITY,
+            u,
+            stalled: false,
         }
+    }
+
+    /// Largest coordinate correction, in units of u relative to the coordinates' scale,
+    /// that still counts as round-off of the coordinates themselves.
+    pub const ROUNDOFF_CORRECTION: f64 = 64.0;
+
+    /// Whether the last residual given to [`converged`](Self::converged) stalled while the
+    /// Newton correction that produced it, `correction` (in coordinate units, max norm),
+    /// was already at the round-off of coordinates of size `coord_scale`: no representable
+    /// change of the state can lower the residual further. This is the noise floor of a
+    /// stiff f64 model whose force scale understates its round-off (an axial stiffness
+    /// EA = 1e8 N turns 1e-16 m of position round-off into 1e-8 N, ~1e-12 of the forces),
+    /// where a `tol` below that floor would otherwise halve every step down to `dt_min`.
+    pub fn stalled_at_roundoff(&self, correction: f64, coord_scale: f64) -> bool {
+        self.stalled && correction <= Self::ROUNDOFF_CORRECTION * self.u * coord_scale
     }
 
     /// Whether residual `res` (max norm) at force scale `scale` is converged; call once
@@ -116,6 +135,7 @@ impl Convergence {
         let scale = scale.max(f64::MIN_POSITIVE);
         let rel = res / scale;
         let stalled = rel > 0.5 * self.prev;
+        self.stalled = stalled;
         self.prev = rel;
         res <= self.tol * scale || res == 0.0 || (stalled && rel <= self.noise)
     }
