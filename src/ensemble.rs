@@ -194,6 +194,11 @@ pub struct Outcome {
     pub times: StageTimes,
     pub sensors: Vec<SensorSummary>,
     pub derived: Vec<(String, f64)>,
+    /// growth of the energy balance (see `RunStats::energy_growth`; None where it is not
+    /// defined, e.g. models with applied loads)
+    pub energy_growth: Option<f64>,
+    /// warnings about the variant's result (an energy balance that grew: probably unstable)
+    pub warnings: Vec<String>,
     /// full histories, kept only when asked for (single runs)
     pub history: Option<dynamics::History>,
 }
@@ -513,6 +518,8 @@ pub fn run_on(
                     times: stats.times,
                     sensors: summaries,
                     derived,
+                    energy_growth: stats.energy_growth,
+                    warnings: stats.warning().into_iter().collect(),
                     history: keep_history.then_some(hist),
                 }
             })

@@ -920,6 +920,25 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             .map(|p| format!(", written to {}", p.display()))
             .unwrap_or_default()
     );
+    let flagged: Vec<usize> = outcomes
+        .iter()
+        .filter(|o| !o.warnings.is_empty())
+        .map(|o| o.global_index)
+        .collect();
+    if !flagged.is_empty() {
+        let shown: Vec<String> = flagged.iter().take(20).map(|i| i.to_string()).collect();
+        eprintln!(
+            "warning: {} variant(s) completed with an energy balance that grew (probably \
+             unstable; reduce dt or lower rho_inf): indices {}{}",
+            flagged.len(),
+            shown.join(", "),
+            if flagged.len() > shown.len() {
+                ", …"
+            } else {
+                ""
+            }
+        );
+    }
     if args.model.json {
         let m0 = prepared.models.first();
         let vs: Vec<serde_json::Value> = outcomes
@@ -961,6 +980,8 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "steps": o.steps,
                     "rejected_steps": o.rejected_steps,
                     "wall_s": o.wall_s,
+                    "energy_growth": o.energy_growth,
+                    "warnings": o.warnings,
                     "sensors": sensors,
                     "derived": derived,
                 })

@@ -220,3 +220,48 @@ fn sigint_leaves_a_valid_file_marked_interrupted() {
         "no variant left 'running': {state:?}"
     );
 }
+
+#[test]
+fn sweep_flags_the_variants_whose_energy_balance_grew_and_only_those() {
+    // spin-up beam, 3 elements: ρ∞ = 0.9 at dt = 0.04 s goes unstable (energy balance
+    // +39 %, peak 2.18 m instead of 0.574 m), ρ∞ = 0.6 at dt = 0.02 s does not (0); see
+    // tests/spinup.rs. A campaign must say which variant it was, not bury it in a table.
+    let bin = env!("CARGO_BIN_EXE_latdyn");
+    let sweep = |dt: &str| {
+        let out = Command::new(bin)
+            .args([
+                "sweep",
+                "models/spinup_beam.toml",
+                "--vary",
+                "rho_inf=0.6:0.9:2",
+                "--set",
+                "elements=3",
+                "--set",
+                &format!("dt={dt}"),
+                "--json",
+            ])
+            .current_dir(root())
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(0));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (v, String::from_utf8_lossy(&out.stderr).to_string())
+    };
+    let (coarse, err) = sweep("0.04");
+    let vs = coarse["variants"].as_array().unwrap();
+    let unstable = &vs[1];
+    assert_eq!(unstable["parameters"]["rho_inf"], 0.9);
+    assert_eq!(unstable["status"], "completed");
+    assert!(unstable["energy_growth"].as_f64().unwrap() > 0.1);
+    assert!(unstable["warnings"][0]
+        .as_str()
+        .unwrap()
+        .contains("unstable"));
+    assert!(err.contains("energy balance that grew"), "{err}");
+    let (fine, err) = sweep("0.02");
+    let stable = &fine["variants"].as_array().unwrap()[0];
+    assert_eq!(stable["parameters"]["rho_inf"], 0.6);
+    assert!(stable["energy_growth"].as_f64().unwrap() < 1e-6);
+    assert_eq!(stable["warnings"].as_array().unwrap().len(), 0);
+    let _ = err;
+}
