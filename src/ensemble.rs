@@ -481,6 +481,7 @@ pub fn run_on(
                         steps: stats.steps as u64,
                         rejected_steps: stats.rejected_steps as u64,
                         wall_s: wall,
+                        energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
                     };
                     let mut r = Ok(());
                     for ti in 0..hist.t.len() {

@@ -780,6 +780,7 @@ fn write_single_h5(
             steps: stats.steps as u64,
             rejected_steps: stats.rejected_steps as u64,
             wall_s: wall,
+            energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
         },
     )?;
     w.finish("complete")?;

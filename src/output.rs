@@ -28,6 +28,9 @@
 //! /status/steps            int64 [V]
 //! /status/rejected_steps   int64 [V]
 //! /status/wall_s           float64 [V] (NaN until set)
+//! /status/energy_growth    float64 [V]: growth of the energy balance (see
+//!                          `RunStats::energy_growth`; > 1e-3 means probably unstable),
+//!                          NaN where not defined (applied loads) or not yet run
 //! /status/global_index     int64 [V]: index of each variant in the whole campaign
 //!                          (differs from the row index when the campaign is sharded)
 //! /derived/<NAME>          float64 [V], NaN where not set (only names ever set exist)
@@ -112,6 +115,8 @@ pub struct VariantStatus {
     pub steps: u64,
     pub rejected_steps: u64,
     pub wall_s: f64,
+    /// growth of the energy balance, NaN where not defined
+    pub energy_growth: f64,
 }
 
 impl Default for VariantStatus {
@@ -124,6 +129,7 @@ impl Default for VariantStatus {
             steps: 0,
             rejected_steps: 0,
             wall_s: f64::NAN,
+            energy_growth: f64::NAN,
         }
     }
 }
@@ -647,6 +653,8 @@ impl CampaignWriter {
         let col = |f: fn(&VariantStatus) -> f64| self.status.iter().map(f).collect::<Vec<_>>();
         write_f64(&st, "t_fail", &[nv], &col(|s| s.t_fail)).map_err(h5("/status/t_fail"))?;
         write_f64(&st, "wall_s", &[nv], &col(|s| s.wall_s)).map_err(h5("/status/wall_s"))?;
+        write_f64(&st, "energy_growth", &[nv], &col(|s| s.energy_growth))
+            .map_err(h5("/status/energy_growth"))?;
         let icol = |f: fn(&VariantStatus) -> u64| {
             self.status
                 .iter()

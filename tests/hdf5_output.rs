@@ -97,6 +97,7 @@ fn write_campaign(path: &Path) {
             steps: 100,
             rejected_steps: 3,
             wall_s: 0.5,
+            energy_growth: 2e-7,
         },
     )
     .unwrap();
@@ -110,6 +111,7 @@ fn write_campaign(path: &Path) {
             steps: 42,
             rejected_steps: 7,
             wall_s: 0.25,
+            energy_growth: f64::NAN,
         },
     )
     .unwrap();
@@ -184,6 +186,8 @@ fn campaign_round_trip_rust() {
     assert_eq!(st("steps").read_raw::<i64>().unwrap(), [100, 42]);
     assert_eq!(st("rejected_steps").read_raw::<i64>().unwrap(), [3, 7]);
     assert_eq!(st("wall_s").read_raw::<f64>().unwrap(), [0.5, 0.25]);
+    let eg = st("energy_growth").read_raw::<f64>().unwrap();
+    assert!(eg[0] == 2e-7 && eg[1].is_nan(), "{eg:?}");
     assert_eq!(st("global_index").read_raw::<i64>().unwrap(), [4, 7]);
 
     let d = f

@@ -79,6 +79,8 @@ def check(path):
         assert st["steps"].dtype == np.int64 and list(st["steps"][:]) == [100, 42]
         assert list(st["rejected_steps"][:]) == [3, 7]
         assert list(st["wall_s"][:]) == [0.5, 0.25]
+        eg = st["energy_growth"][:]
+        assert eg[0] == 2e-7 and math.isnan(eg[1]), eg
         assert st["global_index"].dtype == np.int64
         assert list(st["global_index"][:]) == [4, 7]
 
