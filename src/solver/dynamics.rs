@@ -132,8 +132,10 @@ pub struct Integrator<'m> {
     /// history, e.g. at the start or after a hinge locked), for the predictor
     prev_a: Vec<f64>,
     prev_h: f64,
-    /// size of the model's coordinates (largest node distance from the origin, at least
-    /// 1 for the angles), for the round-off floor of Newton corrections
+    /// size of the model (largest node distance from the first node, at least 1 for the
+    /// angles), for the round-off floor of Newton corrections: the element arithmetic works
+    /// on chords and displacements, whose round-off scales with the model's extent, not
+    /// with its distance from the origin
     coord_scale: f64,
     /// the last two acceleration changes point the same way (positive inner product)
     trend_smooth: bool,
@@ -168,10 +170,11 @@ impl<'m> Integrator<'m> {
             prev_q: vec![0.0; nd],
             prev_a: vec![0.0; nd],
             prev_h: 0.0,
-            coord_scale: model
-                .x0
-                .iter()
-                .fold(1.0f64, |m, x| m.max(crate::math::norm(*x))),
+            coord_scale: model.x0.first().map_or(1.0, |o| {
+                model.x0.iter().fold(1.0f64, |m, x| {
+                    m.max(crate::math::norm(crate::math::sub(*x, *o)))
+                })
+            }),
             trend_smooth: false,
             prev_da: vec![0.0; nd],
             asm,
