@@ -2,10 +2,11 @@
 # The design studies of issue 6, each one `latdyn sweep`, tables written to docs/studies/:
 #  - Mini-Mast bay: longeron hinge axes turned by -0.1..0.1 rad (51 designs) ->
 #    docs/studies/minimast_hinge_sweep.md (peak longeron/diagonal bending, peak drive
-#    force, outcome per design, best design). ~15 min wall on a shared 2-core machine.
+#    force, outcome per design, best design).
 #  - flapping blade: 33 rotor speeds 1..9 rad/s with the FFT bending frequency, plus the
 #    MAC-tracked eigenvalue branches -> docs/studies/blade_speed_campaign.md (frequency vs
-#    Southwell per speed, resonance speeds with 3, 4, 5 Omega). ~7 min.
+#    Southwell per speed, resonance speeds with 3, 4, 5 Omega). Both studies together: ~4 min
+#    on a 2-core machine (measured in session 4).
 # Needs python3 with h5py and numpy (as the tests do). OUT=dir REUSE=1 reuses existing files
 # (the blade files are shared with examples/reproduce_section5.sh).
 set -euo pipefail
