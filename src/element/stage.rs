@@ -128,6 +128,19 @@ impl CpuEval {
     }
 }
 
+/// Apply one per-element function to every element of a batch.
+fn each(
+    elems: &[ElemData],
+    inputs: &[ElemIn],
+    inertia: bool,
+    out: &mut [ElemOut],
+    f: fn(&ElemData, &ElemIn, bool, &mut ElemOut),
+) {
+    for ((e, i), o) in elems.iter().zip(inputs).zip(out.iter_mut()) {
+        f(e, i, inertia, o);
+    }
+}
+
 impl ElementEval for CpuEval {
     fn evaluate(
         &self,
@@ -136,9 +149,7 @@ impl ElementEval for CpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        for ((e, i), o) in elems.iter().zip(inputs).zip(out.iter_mut()) {
-            CpuEval::one(e, i, inertia, o);
-        }
+        each(elems, inputs, inertia, out, CpuEval::one);
         Ok(())
     }
     fn evaluate_residual(
@@ -148,9 +159,7 @@ impl ElementEval for CpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        for ((e, i), o) in elems.iter().zip(inputs).zip(out.iter_mut()) {
-            CpuEval::one_residual(e, i, inertia, o);
-        }
+        each(elems, inputs, inertia, out, CpuEval::one_residual);
         Ok(())
     }
     fn name(&self) -> String {

@@ -139,8 +139,6 @@ pub struct Integrator<'m> {
     coord_scale: f64,
     /// the last two acceleration changes point the same way (positive inner product)
     trend_smooth: bool,
-    /// the last acceleration change a_{n} − a_{n−1}
-    prev_da: Vec<f64>,
 }
 
 impl<'m> Integrator<'m> {
@@ -176,7 +174,6 @@ impl<'m> Integrator<'m> {
                 })
             }),
             trend_smooth: false,
-            prev_da: vec![0.0; nd],
             asm,
             sys,
             s,
@@ -346,13 +343,15 @@ impl<'m> Integrator<'m> {
                     };
                 }
                 std::mem::swap(&mut self.s, s);
-                // the change of this step against the previous one's
-                let mut dot = 0.0;
-                for ((pd, a), a0) in self.prev_da.iter_mut().zip(&self.s.a).zip(&start.a) {
-                    let d = a - a0;
-                    dot += d * *pd;
-                    *pd = d;
-                }
+                // this step's acceleration change against the previous step's
+                let dot: f64 = self
+                    .s
+                    .a
+                    .iter()
+                    .zip(&start.a)
+                    .zip(&self.prev_a)
+                    .map(|((a, a0), pa)| (a - a0) * (a0 - pa))
+                    .sum();
                 self.trend_smooth = self.prev_h > 0.0 && dot > 0.0;
                 self.prev_a.clone_from(&start.a);
                 self.prev_h = h;
