@@ -375,6 +375,164 @@ def ensemble(L, args):
                 tip_abs_diff_n=len(diffs))
 
 
+# ---- ensemble at equal error ------------------------------------------------------
+
+EQ_OMEGAS = (1.5, 5.5, 9.0)   # sample speeds, away from the resonance crossings
+EQ_TEND = 2.0                 # s, window of every run of this section
+EQ_REF = (20, 0.001)          # latdyn self-convergence reference (elements, dt)
+EQ_EXU_CHECK = (32, 0.0025)   # finest Exudyn run, cross-check of the reference
+EQ_METRICS = (
+    # key, sensor, description, threshold
+    ("tip", "tip height z(t)", 1e-3),
+    ("moment", "mid-span flapwise bending moment M(t)", 0.1),
+)
+
+
+def _hist_err(t, y, t_ref, y_ref):
+    """max |y − y_ref| over the reference's samples, relative to max |y_ref|."""
+    return float(np.max(np.abs(np.interp(t_ref, t, y) - y_ref)) / np.max(np.abs(y_ref)))
+
+
+def _lat_blade(L, omega, ne, dt, t_end):
+    cmd = [L.exe, "run", FB_MODEL, "--json"]
+    for k, v in {"omega": omega, "elements": ne, "dt": dt, "t_end": t_end}.items():
+        cmd += ["--set", f"{k}={v}"]
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {p.stderr[-2000:]}")
+    d = json.loads(p.stdout)
+    if d.get("status") != "completed":
+        raise RuntimeError(f"{' '.join(cmd)}: status {d.get('status')}: {d.get('message')}")
+    tip, mom = d["sensors"]["tip"], d["sensors"]["mid_moment"]
+    z = np.array(tip["values"])[:, tip["components"].index("z")]
+    return np.array(tip["t"]), z, np.array(mom["values"])[:, 0], wall, d
+
+
+def _exu_blade_sig(args):
+    omega, t_end, dt, ne = args
+    t0 = time.perf_counter()
+    try:
+        em.flapping_blade_signals(omega=omega, n_el=ne, dt=dt, t_end=t_end)
+        ok = True
+    except Exception:  # Exudyn stopped (minimum step size): counted, reported
+        ok = False
+    return omega, time.perf_counter() - t0, ok
+
+
+def ensemble_equal_error(L, args):
+    """Work-precision of both codes on the blade campaign's own quantities at sample
+    speeds, each code's cheapest robust setting per quantity, and the campaign
+    throughput of both codes at those settings."""
+    if args.quick:
+        lat_ladder = [(2, 0.01), (3, 0.005), (4, 0.005), (6, 0.0025)]
+        exu_ladder = [(2, 0.01), (8, 0.005), (16, 0.005), (32, 0.0025)]
+    else:
+        lat_ladder = [(1, 0.01), (2, 0.01), (2, 0.005), (3, 0.005), (4, 0.005), (4, 0.0025),
+                      (6, 0.0025), (10, 0.0025)]
+        exu_ladder = [(2, 0.01), (4, 0.01), (4, 0.005), (8, 0.005), (16, 0.005),
+                      (16, 0.0025), (32, 0.005), (32, 0.0025)]
+    refs = {}
+    for om in EQ_OMEGAS:
+        t, z, m, w, d = _lat_blade(L, om, EQ_REF[0], EQ_REF[1], EQ_TEND)
+        refs[om] = (t, z, m)
+        log("EQ reference", om, f"{w:.1f}s")
+    check = {}
+    for om in EQ_OMEGAS:
+        tr, zr, mr = refs[om]
+        try:
+            t, z, m, _ = em.flapping_blade_signals(omega=om, n_el=EQ_EXU_CHECK[0],
+                                                   dt=EQ_EXU_CHECK[1], t_end=EQ_TEND)
+            check[str(om)] = dict(tip=_hist_err(t, z, tr, zr), moment=_hist_err(t, m, tr, mr))
+        except Exception as e:
+            log("EQ Exudyn check", om, "failed:", str(e)[:200])
+            check[str(om)] = dict(tip=float("nan"), moment=float("nan"))
+        log("EQ Exudyn check", om, check[str(om)])
+    rows = []
+    for i in range(max(len(lat_ladder), len(exu_ladder))):
+        for code, ladder in (("latdyn", lat_ladder), ("Exudyn", exu_ladder)):
+            if i >= len(ladder):
+                continue
+            ne, dt = ladder[i]
+            per = {}
+            for om in EQ_OMEGAS:
+                tr, zr, mr = refs[om]
+                try:
+                    if code == "latdyn":
+                        t, z, m, w, d = _lat_blade(L, om, ne, dt, EQ_TEND)
+                    else:
+                        t0 = time.perf_counter()
+                        t, z, m, _ = em.flapping_blade_signals(omega=om, n_el=ne, dt=dt,
+                                                               t_end=EQ_TEND)
+                        w = time.perf_counter() - t0
+                    per[str(om)] = dict(wall=w, tip=_hist_err(t, z, tr, zr),
+                                        moment=_hist_err(t, m, tr, mr))
+                except Exception as e:  # an Exudyn run that stops counts as failed
+                    log("EQ", code, ne, dt, om, "failed:", str(e)[:200])
+                    per[str(om)] = dict(wall=float("nan"), tip=float("inf"),
+                                        moment=float("inf"))
+            walls = [v["wall"] for v in per.values()]
+            row = dict(code=code, elements=ne, dt=dt, steps=int(round(EQ_TEND / dt)),
+                       per=per, wall=float(np.mean(walls)) if all(map(math.isfinite, walls))
+                       else float("inf"))
+            for key, _, _ in EQ_METRICS:
+                row[key] = max(v[key] for v in per.values())
+            rows.append(row)
+            log("EQ", code, ne, dt, f"{row['wall']:.3f}s",
+                " ".join(f"{k} {row[k]:.2e}" for k, _, _ in EQ_METRICS))
+    choice = {}
+    for key, _, thr in EQ_METRICS:
+        choice[key] = {}
+        for code in ("latdyn", "Exudyn"):
+            rr = [dict(r, err=r[key]) for r in rows]
+            c = robust(rr, code, thr)
+            choice[key][code] = None if c is None else (c["elements"], c["dt"])
+    # campaigns at the chosen settings
+    n_var = 100 if args.quick else 1000
+    camps = {}
+    for key, _, _ in EQ_METRICS:
+        lc, ec = choice[key]["latdyn"], choice[key]["Exudyn"]
+        if lc is None or ec is None:
+            continue
+        tag = f"{key}"
+        with tempfile.TemporaryDirectory() as td:
+            out = os.path.join(td, "campaign.h5")
+            cmd = [L.exe, "sweep", FB_MODEL, "--vary", f"omega=1:9:{n_var}", "--set",
+                   f"t_end={EQ_TEND}", "--set", f"dt={lc[1]}", "--set", f"elements={lc[0]}",
+                   "--threads", "2", "--json", "-o", out]
+            t0 = time.perf_counter()
+            p = subprocess.run(cmd, capture_output=True, text=True)
+            lat_wall = time.perf_counter() - t0
+            if p.returncode != 0:
+                raise RuntimeError(p.stderr[-2000:])
+            d = json.loads(p.stdout)
+        ok = sum(1 for v in d["variants"] if v["status"] == "completed")
+        # Exudyn: an evenly spaced subset sized for about a minute of its pool
+        per_var = statistics.median(
+            r["wall"] for r in rows if r["code"] == "Exudyn" and (r["elements"], r["dt"]) == ec)
+        n_exu = int(min(n_var, max(20, 2 * args.eq_exudyn_budget / max(per_var, 1e-3))))
+        sub = np.linspace(1.0, 9.0, n_var)[::max(1, n_var // n_exu)]
+        ctx = mp.get_context("fork")
+        t0 = time.perf_counter()
+        with ctx.Pool(2) as pool:
+            res = pool.map(_exu_blade_sig, [(float(o), EQ_TEND, ec[1], ec[0]) for o in sub],
+                           chunksize=1)
+        exu_wall = time.perf_counter() - t0
+        camps[tag] = dict(lat=lc, exu=ec, n_var=n_var, lat_wall=lat_wall, lat_completed=ok,
+                          lat_failed=len(d["variants"]) - ok,
+                          exu_failed=sum(1 for r in res if not r[2]),
+                          lat_rate=ok / lat_wall, exu_n=len(sub), exu_wall=exu_wall,
+                          exu_rate=len(sub) / exu_wall,
+                          exu_per_variant=statistics.median(r[1] for r in res),
+                          lat_per_variant=statistics.median(
+                              v["wall_s"] for v in d["variants"] if v["status"] == "completed"))
+        log("EQ campaign", key, "latdyn", lc, f"{lat_wall:.1f}s", "Exudyn", ec, len(sub),
+            f"{exu_wall:.1f}s")
+    return dict(rows=rows, check=check, choice=choice, camps=camps, omegas=list(EQ_OMEGAS),
+                t_end=EQ_TEND, ref=list(EQ_REF), exu_check=list(EQ_EXU_CHECK))
+
+
 # ----------------------------------------------------------------------------------
 # report
 # ----------------------------------------------------------------------------------
@@ -466,6 +624,33 @@ def plot(rc, su, path):
     return True
 
 
+def plot_eq(eq, path):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except Exception as e:  # pragma: no cover
+        log("no plot:", e)
+        return False
+    fig, axs = plt.subplots(1, len(EQ_METRICS), figsize=(9, 3.6))
+    for ax, (key, desc, thr) in zip(axs, EQ_METRICS):
+        for code, mk in [("latdyn", "o-"), ("Exudyn", "s-")]:
+            rr = sorted([r for r in eq["rows"] if r["code"] == code
+                         and math.isfinite(r["wall"])], key=lambda r: r["wall"])
+            ax.loglog([r["wall"] for r in rr], [max(r[key], 1e-7) for r in rr], mk, label=code)
+            for r in rr:
+                ax.annotate(f"{r['elements']}/{r['dt']}", (r["wall"], max(r[key], 1e-7)),
+                            fontsize=6)
+        ax.axhline(thr, color="gray", ls="--", lw=0.8)
+        ax.set_xlabel("wall time per run [s]")
+        ax.set_ylabel("max relative error")
+        ax.set_title(f"blade, {desc}", fontsize=8)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return True
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -479,7 +664,10 @@ def main():
                     help="t_end of each ensemble variant [s] (dt 5 ms)")
     ap.add_argument("--exudyn-variants", type=int, default=250,
                     help="number of ensemble variants Exudyn runs (evenly spaced subset)")
-    ap.add_argument("--skip", default="", help="comma list of rc,su,ens to skip")
+    ap.add_argument("--eq-exudyn-budget", type=float, default=60.0,
+                    help="seconds of Exudyn pool time per equal-error campaign (sets how "
+                         "many of the variants Exudyn runs)")
+    ap.add_argument("--skip", default="", help="comma list of rc,su,ens,eq,perf to skip")
     ap.add_argument("--raw", default=None, help="where to write the raw results (JSON)")
     ap.add_argument("--render", default=None, metavar="RAW",
                     help="only re-render the report from a raw-results JSON of a run")
@@ -511,10 +699,11 @@ def main():
     rc = [] if "rc" in skip else rotating_cantilever(L, args, f_ref)
     su, su_ref = ([], None) if "su" in skip else spinup(L, args)
     ens = None if "ens" in skip else ensemble(L, args)
+    eq = None if "eq" in skip else ensemble_equal_error(L, args)
     prof = None if "perf" in skip else perf_profile(L)
     load1 = os.getloadavg()
     total = time.time() - t_start
-    R = dict(rc=rc, su=su, su_ref=su_ref, ens=ens, perf=prof, w_ref=w_ref, f_ref=f_ref, check=check,
+    R = dict(rc=rc, su=su, su_ref=su_ref, ens=ens, eq=eq, perf=prof, w_ref=w_ref, f_ref=f_ref, check=check,
              lat_modes_f=lat_modes_f, load0=list(load0), load1=list(load1), total=total,
              date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()), quick=args.quick,
              repeat_below=args.repeat_below, lat_version=lat_version,
@@ -698,6 +887,74 @@ def render(R, out):
               f"{busy / ens['lat_wall'] * 100:.0f} % of the thread time; the rest is campaign "
               "overhead (model compilation, output, load imbalance).")
         A("")
+    eq = R.get("eq")
+    if eq:
+        A("## 4. Ensemble at equal error: the blade campaign's own quantities\n")
+        A("Section 3 compares equal meshes and steps, i.e. the cost of one step; a user "
+          "running the campaign picks for each code the cheapest mesh and step that gives "
+          "the accuracy the study needs. This section measures that: each code's error on the "
+          "campaign's quantities at sample speeds, each code's cheapest setting that meets a "
+          "threshold, and both campaigns run at those settings.\n")
+        A(f"- Sample speeds Ω = {', '.join(f'{o:g}' for o in eq['omegas'])} rad/s (spread over "
+          "the campaign's 1-9 rad/s and away from the resonance crossings near 3.0, 4.2 and "
+          f"7.5-7.9 rad/s); every run covers t = 0 … {eq['t_end']:g} s, output every 0.01 s.")
+        A(f"- Quantities: the tip height z(t) (dominated by the rigid flapping) and the "
+          "mid-span flapwise bending moment M(t) (the elastic response the campaign is run "
+          "for: Fig. 19's moment growth, the first bending frequency). latdyn: sensors `tip` "
+          "and `mid_moment`; Exudyn: tip node z and the mean `TorqueLocal` y of the two "
+          "elements meeting at mid-span (even element counts only).")
+        A("- Error of a run = max over the window of |y − y_ref| / max |y_ref|, the largest "
+          "over the sample speeds. Reference: **self-convergence**, latdyn "
+          f"{eq['ref'][0]} elements, dt = {eq['ref'][1]} s. Cross-check: Exudyn "
+          f"{eq['exu_check'][0]} elements, dt = {eq['exu_check'][1]} s differs from it by "
+          + ", ".join(f"{c['tip']:.1e} (z) / {c['moment']:.1e} (M) at Ω = {o}"
+                      for o, c in eq["check"].items()) + ".")
+        A("- Thresholds: " + "; ".join(f"{desc}: {thr * 100:g} %" for _, desc, thr in
+                                          EQ_METRICS) + ". The setting chosen per code is the "
+          "cheapest 'robust' one (it and every finer setting on its ladder meet the "
+          "threshold). Wall time per run as in sections 1-2 (latdyn: whole process; Exudyn: "
+          "build + solve in-process), the mean over the sample speeds.\n")
+        A("| code | elements | dt [s] | steps | wall per run [s] | error z(t) | error M(t) |")
+        A("|---|---|---|---|---|---|---|")
+        for r in eq["rows"]:
+            A(f"| {r['code']} | {r['elements']} | {r['dt']} | {r['steps']} | {r['wall']:.3f} | "
+              f"{r['tip']:.2e} | {r['moment']:.2e} |")
+        A("")
+        A("| quantity | threshold | latdyn setting | Exudyn setting | latdyn campaign: variants, "
+          "wall [s], variants/s | Exudyn: variants run, wall [s], variants/s | throughput "
+          "ratio | target ≥ 10 |")
+        A("|---|---|---|---|---|---|---|---|")
+        for key, desc, thr in EQ_METRICS:
+            ch = eq["choice"][key]
+            c = eq["camps"].get(key)
+            fmt_s = (lambda x: "not reached on the ladder" if x is None
+                     else f"{x[0]} el, dt {x[1]}")
+            if c is None:
+                A(f"| {desc} | {thr * 100:g} % | {fmt_s(ch['latdyn'])} | {fmt_s(ch['Exudyn'])} "
+                  "| — | — | — | — |")
+                continue
+            ratio = c["lat_rate"] / c["exu_rate"]
+            A(f"| {desc} | {thr * 100:g} % | {fmt_s(c['lat'])} | {fmt_s(c['exu'])} | "
+              f"{c['lat_completed']}, {c['lat_wall']:.1f}, {c['lat_rate']:.1f} | "
+              f"{c['exu_n']}, {c['exu_wall']:.1f}, {c['exu_rate']:.2f} | {ratio:.1f} | "
+              f"{'met' if ratio >= 10 else 'missed'} |")
+        A("")
+        fails = [f"{k}: latdyn {c['lat_failed']} of {c['lat_completed'] + c['lat_failed']}, "
+                 f"Exudyn {c['exu_failed']} of {c['exu_n']}" for k, c in eq["camps"].items()]
+        A("Variants that did not complete (counted in the wall time; latdyn's rate counts "
+          "completed variants only, Exudyn's all variants run, which can only favour Exudyn): "
+          + "; ".join(fails) + ".\n")
+        A(f"Campaigns: latdyn `latdyn sweep models/flapping_blade.toml --vary "
+          f"omega=1:9:N --set t_end={eq['t_end']:g} --set dt=DT --set elements=NE --threads 2` "
+          "(whole process); Exudyn `multiprocessing.Pool(2)` over an evenly spaced subset of "
+          "the same speeds (sized for about a minute of pool time), throughput in variants/s "
+          "(all variants cover the same window, so variants/s is simulated time per second "
+          "and comparable across steps). Per-variant median: "
+          + "; ".join(f"{k}: latdyn {c['lat_per_variant'] * 1e3:.1f} ms (`wall_s` in the "
+                      f"sweep), Exudyn {c['exu_per_variant'] * 1e3:.0f} ms"
+                      for k, c in eq["camps"].items()) + ".\n")
+        if plot_eq(eq, os.path.splitext(out)[0] + "_campaign.png"):
+            A("![campaign work-precision](exudyn_campaign.png)\n")
     A("## Where latdyn's time goes\n")
     lat_rows = [r for r in rc + su if r["code"] == "latdyn"]
     if lat_rows:

@@ -32,7 +32,7 @@ from exudyn.itemInterface import (
     NodeRigidBodyEP, NodeRigidBodyRxyz, NodePointGround, ObjectGround,
     ObjectBeamGeometricallyExact, MarkerNodeCoordinate, MarkerNodeRigid,
     MarkerBodyRigid, ObjectRigidBody, ObjectConnectorCoordinate, ObjectJointGeneric, Force,
-    SensorNode,
+    SensorNode, SensorBody,
 )
 
 EP0 = [1.0, 0.0, 0.0, 0.0]
@@ -211,6 +211,21 @@ def flapping_blade(omega=6.0, n_el=10, dt=0.005, t_end=10.0, rho_inf=0.6, tilt=0
     """latdyn models/flapping_blade.toml: blade hinged at the axis (flap hinge = the root
     node's free Tait-Bryan y angle), tilted up by `tilt`, hub at constant omega.
     Returns (t, tip z, wall_s)."""
+    t, z, _, wall = flapping_blade_signals(omega, n_el, dt, t_end, rho_inf, tilt, L, EI, GJ,
+                                           EA, rhoA, out_dt, moment=False)
+    return t, z, wall
+
+
+def flapping_blade_signals(omega=6.0, n_el=10, dt=0.005, t_end=10.0, rho_inf=0.6, tilt=0.157,
+                           L=5.0, EI=4375.0, GJ=5000.0, EA=1.0e8, rhoA=10.0, out_dt=0.01,
+                           moment=True):
+    """As `flapping_blade`, also the flapwise bending moment at mid-span (latdyn sensor
+    `mid_moment`): the mean of the local y torques (`TorqueLocal`) of the two elements
+    that meet at mid-span (Exudyn's linear element has one moment per element, at its
+    midpoint; the mean is the mid-span value to O(h²)), so n_el must be even.
+    Returns (t, tip z, mid-span moment or None, wall_s)."""
+    if moment and n_el % 2:
+        raise ValueError("flapping_blade_signals: n_el must be even for the mid-span moment")
     SC = exu.SystemContainer()
     mbs = SC.AddSystem()
     rI = rhoA * (L / 500) ** 2
@@ -220,10 +235,20 @@ def flapping_blade(omega=6.0, n_el=10, dt=0.005, t_end=10.0, rho_inf=0.6, tilt=0
     sens = mbs.AddSensor(SensorNode(nodeNumber=nodes[-1], storeInternal=True,
                                     writeToFile=False,
                                     outputVariableType=exu.OutputVariableType.Position))
+    msens = []
+    if moment:
+        # the beam elements are objects 0 .. n_el-1 (added first by _build_beam)
+        msens = [mbs.AddSensor(SensorBody(bodyNumber=b, localPosition=[0, 0, 0],
+                                          storeInternal=True, writeToFile=False,
+                                          outputVariableType=exu.OutputVariableType.TorqueLocal))
+                 for b in (n_el // 2 - 1, n_el // 2)]
     mbs.Assemble()
     s = _settings(t_end, dt, rho_inf, out_dt)
     t0 = time.perf_counter()
     exu.SolveDynamic(mbs, s)
     wall = time.perf_counter() - t0
     d = mbs.GetSensorStoredData(sens)
-    return d[:, 0], d[:, 3], wall
+    m = None
+    if moment:
+        m = np.mean([mbs.GetSensorStoredData(x)[:, 2] for x in msens], axis=0)
+    return d[:, 0], d[:, 3], m, wall
