@@ -1,5 +1,7 @@
 // Consistent mass matrix M, quadratic-velocity vector S and its velocity derivative C of
-// every element: the WGSL twin of beam::inertia (src/element/beam.rs).
+// every element: the WGSL twin of beam::inertia_columns (src/element/beam.rs), the
+// per-column hyper-dual route that the CPU keeps as the reference of its faster
+// beam::inertia_full (C from the gradients' time derivatives; the same C to 1e-12).
 //
 // One invocation per element. M = ∫μ gᵀg from the closed-form field gradients g at the
 // four Gauss points (beam::gradients_closed); S_j = ∫μ g_j·H(v, v) and

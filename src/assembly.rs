@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use crate::element::{self, CpuEval, ElemData, ElemIn, ElemOut, ElementEval, Mat12, NDOF};
+use crate::element::{self, CpuEval, ElemData, ElemIn, ElemOut, ElementEval, Mat12, Vec12, NDOF};
 use crate::joint::{self, Chain, State};
 use crate::math::*;
 use crate::model::Model;
@@ -49,8 +49,6 @@ pub fn with_evaluator<R>(eval: Arc<dyn ElementEval>, f: impl FnOnce() -> R) -> R
 struct Gathered {
     ch: [Chain; 2],
     y: [Vec3; 2],
-    /// nodal accelerations (with the chains' convective parts)
-    a12: [f64; NDOF],
 }
 
 /// Scratch of the element stage, sized once per model (the hot path does not allocate).
@@ -191,7 +189,6 @@ impl Assembler {
         let empty = Gathered {
             ch: [Chain::empty(); 2],
             y: [[0.0; 3]; 2],
-            a12: [0.0; NDOF],
         };
         let eval = THREAD_EVAL
             .with(|t| t.borrow().clone())
@@ -213,6 +210,7 @@ impl Assembler {
                             r2: I3,
                         },
                         v12: [0.0; NDOF],
+                        acc: [0.0; NDOF],
                     };
                     ne
                 ],
@@ -309,8 +307,18 @@ impl Assembler {
                     a12[6 * nd + 3..6 * nd + 6].copy_from_slice(&add(aa, ca));
                 }
             }
-            scratch.gathered[ie] = Gathered { ch, y, a12 };
-            scratch.inputs[ie] = ElemIn { state: es, v12 };
+            // gravity: the consistent load of a uniform field is M times a rigid
+            // translation by g, so it joins the acceleration that multiplies M
+            let acc: Vec12 = std::array::from_fn(|j| {
+                let gj = if j % 6 < 3 { g[j % 3] } else { 0.0 };
+                a12[j] - gfac * gj
+            });
+            scratch.gathered[ie] = Gathered { ch, y };
+            scratch.inputs[ie] = ElemIn {
+                state: es,
+                v12,
+                acc,
+            };
         }
         // (b) the element stage
         let t_el = Instant::now();
@@ -343,7 +351,7 @@ impl Assembler {
             let ed = &self.elems[ie];
             let n1 = el.n1;
             let es = &scratch.inputs[ie].state;
-            let Gathered { ch, y, a12 } = scratch.gathered[ie];
+            let Gathered { ch, y } = scratch.gathered[ie];
             let v12 = scratch.inputs[ie].v12;
             let o = &scratch.out[ie];
             let mut f = o.f;
@@ -356,43 +364,24 @@ impl Assembler {
             let m = &o.m;
             let mut cmat = o.c;
             if need_inertia {
-                let sv = o.s;
-                // gravity: the consistent load of a uniform field is M times a rigid
-                // translation by g
-                let gv = [
-                    g[0], g[1], g[2], 0.0, 0.0, 0.0, g[0], g[1], g[2], 0.0, 0.0, 0.0,
-                ];
-                let mut finert = [0.0; NDOF];
+                track(&mut info, &o.finert);
                 for i in 0..NDOF {
-                    let mut acc = 0.0;
-                    for j in 0..NDOF {
-                        acc += m[i][j] * if c.inertia { a12[j] } else { 0.0 };
-                        acc -= gfac * m[i][j] * gv[j];
-                    }
-                    finert[i] = acc + if c.inertia { sv[i] } else { 0.0 };
-                }
-                track(&mut info, &finert);
-                for i in 0..NDOF {
-                    f[i] += finert[i];
+                    f[i] += o.finert[i];
                 }
                 if c.inertia {
-                    let mut ke = 0.0;
-                    for i in 0..NDOF {
-                        for j in 0..NDOF {
-                            ke += 0.5 * v12[i] * m[i][j] * v12[j];
-                        }
-                    }
-                    info.kinetic_energy += ke;
-                    if model.solver.rayleigh_alpha != 0.0 || model.solver.rayleigh_beta != 0.0 {
-                        let (ra, rb) = (model.solver.rayleigh_alpha, model.solver.rayleigh_beta);
+                    info.kinetic_energy += 0.5 * (0..NDOF).map(|i| v12[i] * o.mv[i]).sum::<f64>();
+                    let (ra, rb) = (model.solver.rayleigh_alpha, model.solver.rayleigh_beta);
+                    if ra != 0.0 || rb != 0.0 {
                         for i in 0..NDOF {
-                            let mut acc = 0.0;
-                            for j in 0..NDOF {
-                                let d = ra * m[i][j] + rb * k[i][j];
-                                acc += d * v12[j];
-                                cmat[i][j] += d;
+                            let kv: f64 = (0..NDOF).map(|j| k[i][j] * v12[j]).sum();
+                            f[i] += ra * o.mv[i] + rb * kv;
+                        }
+                        if sink.is_some() {
+                            for i in 0..NDOF {
+                                for j in 0..NDOF {
+                                    cmat[i][j] += ra * m[i][j] + rb * k[i][j];
+                                }
                             }
-                            f[i] += acc;
                         }
                     }
                 }

@@ -209,8 +209,10 @@ impl Div for Dual {
     type Output = Self;
     #[inline]
     fn div(self, o: Self) -> Self {
+        // the value divides as f64 does, so a dual pass's values are bit-identical to
+        // the plain f64 pass (the inertia takes g from the pass that also gives ġ)
         let inv = 1.0 / o.v;
-        Dual::new(self.v * inv, (self.d * o.v - self.v * o.d) * inv * inv)
+        Dual::new(self.v / o.v, (self.d * o.v - self.v * o.d) * inv * inv)
     }
 }
 impl Real for Dual {
@@ -288,7 +290,7 @@ impl<const N: usize> Div for DualVec<N> {
     fn div(self, o: Self) -> Self {
         let inv = 1.0 / o.v;
         DualVec::new(
-            self.v * inv,
+            self.v / o.v,
             std::array::from_fn(|k| (self.d[k] * o.v - self.v * o.d[k]) * inv * inv),
         )
     }
@@ -302,106 +304,6 @@ impl<const N: usize> Real for DualVec<N> {
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
         DualVec::new(s, self.d.map(|x| 0.5 * x / s))
-    }
-    #[inline]
-    fn value(self) -> f64 {
-        self.v
-    }
-}
-
-/// A hyper-dual number whose second direction has N lanes: v + a ε₁ + Σₖ (bₖ ε₂ₖ +
-/// abₖ ε₁ε₂ₖ). Lane k does exactly the arithmetic of a [`HyperDual`] pass along
-/// (a, e_k), so N mixed second derivatives come from one pass, bit-identical to N passes.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HyperDualVec<const N: usize> {
-    pub v: f64,
-    pub a: f64,
-    pub b: [f64; N],
-    pub ab: [f64; N],
-}
-
-impl<const N: usize> HyperDualVec<N> {
-    #[inline]
-    pub fn new(v: f64, a: f64, b: [f64; N], ab: [f64; N]) -> Self {
-        HyperDualVec { v, a, b, ab }
-    }
-    #[inline]
-    fn lift(self, f: f64, f1: f64, f2: f64) -> Self {
-        HyperDualVec {
-            v: f,
-            a: f1 * self.a,
-            b: self.b.map(|x| f1 * x),
-            ab: std::array::from_fn(|k| f1 * self.ab[k] + f2 * self.a * self.b[k]),
-        }
-    }
-}
-
-impl<const N: usize> Add for HyperDualVec<N> {
-    type Output = Self;
-    #[inline]
-    fn add(self, o: Self) -> Self {
-        HyperDualVec::new(
-            self.v + o.v,
-            self.a + o.a,
-            std::array::from_fn(|k| self.b[k] + o.b[k]),
-            std::array::from_fn(|k| self.ab[k] + o.ab[k]),
-        )
-    }
-}
-impl<const N: usize> Sub for HyperDualVec<N> {
-    type Output = Self;
-    #[inline]
-    fn sub(self, o: Self) -> Self {
-        HyperDualVec::new(
-            self.v - o.v,
-            self.a - o.a,
-            std::array::from_fn(|k| self.b[k] - o.b[k]),
-            std::array::from_fn(|k| self.ab[k] - o.ab[k]),
-        )
-    }
-}
-impl<const N: usize> Neg for HyperDualVec<N> {
-    type Output = Self;
-    #[inline]
-    fn neg(self) -> Self {
-        HyperDualVec::new(-self.v, -self.a, self.b.map(|x| -x), self.ab.map(|x| -x))
-    }
-}
-// the product rule adds inside a multiplication
-#[allow(clippy::suspicious_arithmetic_impl)]
-impl<const N: usize> Mul for HyperDualVec<N> {
-    type Output = Self;
-    #[inline]
-    fn mul(self, o: Self) -> Self {
-        HyperDualVec::new(
-            self.v * o.v,
-            self.v * o.a + self.a * o.v,
-            std::array::from_fn(|k| self.v * o.b[k] + self.b[k] * o.v),
-            std::array::from_fn(|k| {
-                self.v * o.ab[k] + self.a * o.b[k] + self.b[k] * o.a + self.ab[k] * o.v
-            }),
-        )
-    }
-}
-// the product rule adds inside a multiplication
-#[allow(clippy::suspicious_arithmetic_impl)]
-impl<const N: usize> Div for HyperDualVec<N> {
-    type Output = Self;
-    #[inline]
-    fn div(self, o: Self) -> Self {
-        let inv = 1.0 / o.v;
-        self * o.lift(inv, -inv * inv, 2.0 * inv * inv * inv)
-    }
-}
-impl<const N: usize> Real for HyperDualVec<N> {
-    #[inline]
-    fn cst(v: f64) -> Self {
-        HyperDualVec::new(v, 0.0, [0.0; N], [0.0; N])
-    }
-    #[inline]
-    fn sqrt(self) -> Self {
-        let s = self.v.sqrt();
-        self.lift(s, 0.5 / s, -0.25 / (s * self.v))
     }
     #[inline]
     fn value(self) -> f64 {

@@ -22,8 +22,7 @@
 //! and is done with 4-point Gauss-Legendre, which is exact for degree 7.
 
 use super::ad::{
-    mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, DualVec, HyperDual, HyperDualVec, Real, M3,
-    V3,
+    mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, DualVec, HyperDual, Real, M3, V3,
 };
 use crate::math::{Mat3, Vec3};
 use crate::model::BeamProps;
@@ -340,74 +339,6 @@ fn field_derivs(
     out
 }
 
-/// Node position and frame for [`field_derivs_lanes`]: first direction `da` (the `.a`
-/// part, second-order term as in [`perturb`]), second direction the lanes of [`LANES`]
-/// (`tr`, `rot` as in [`perturb_lanes`]).
-#[inline]
-fn perturb_hd_lanes(
-    x: Vec3,
-    t: &Mat3,
-    da: &[f64],
-    tr: Option<usize>,
-    rot: usize,
-) -> (V3<HyperDualVec<LANES>>, M3<HyperDualVec<LANES>>) {
-    let z = HyperDualVec::new(0.0, 0.0, [0.0; LANES], [0.0; LANES]);
-    let mut xp = [z; 3];
-    for i in 0..3 {
-        xp[i].v = x[i];
-        xp[i].a = da[i];
-        if let Some(l) = tr {
-            xp[i].b[l + i] = 1.0;
-        }
-    }
-    let wa = [da[3], da[4], da[5]];
-    let mut tp = [[z; 3]; 3];
-    for j in 0..3 {
-        let tj = crate::math::col(t, j);
-        let a = crate::math::cross(wa, tj);
-        for i in 0..3 {
-            tp[i][j].v = tj[i];
-            tp[i][j].a = a[i];
-        }
-        for m in 0..3 {
-            let mut wb = [0.0; 3];
-            wb[m] = 1.0;
-            let b = crate::math::cross(wb, tj);
-            let ab = crate::math::cross(wa, b);
-            let ba = crate::math::cross(wb, a);
-            for i in 0..3 {
-                tp[i][j].b[rot + m] = b[i];
-                tp[i][j].ab[rot + m] = 0.5 * (ab[i] + ba[i]);
-            }
-        }
-    }
-    (xp, tp)
-}
-
-/// The mixed second derivatives H(`da`, e_k) of the position fields at the Gauss points
-/// for the lanes of [`LANES`] in one pass (lane results bit-identical to
-/// `field_derivs(.., da, &unit(k))`'s `.ab`, with node 1's translation the negated node
-/// 2's: the fields depend on u1 linearly and otherwise through u2 − u1).
-fn field_derivs_lanes(
-    e: &ElemData,
-    s: &ElemState,
-    t1: &Mat3,
-    t2: &Mat3,
-    da: &Vec12,
-) -> [[[HyperDualVec<LANES>; 3]; 3]; 4] {
-    let (u1, tt1) = perturb_hd_lanes(s.u1, t1, &da[0..6], None, LANE_R1);
-    let (u2, tt2) = perturb_hd_lanes(s.u2, t2, &da[6..12], Some(LANE_T2), LANE_R2);
-    let kin = kinematics(e.chord0, e.l0, u1, u2, &tt1, &tt2);
-    let c0 = e.chord0.map(HyperDualVec::cst);
-    let chord = vadd(c0, vsub(u2, u1));
-    let z = HyperDualVec::new(0.0, 0.0, [0.0; LANES], [0.0; LANES]);
-    let mut out = [[[z; 3]; 3]; 4];
-    for (g, (xi, _)) in GAUSS4.iter().enumerate() {
-        out[g] = section_fields(&kin, u1, chord, *xi);
-    }
-    out
-}
-
 /// μ-weights of the three position fields per unit length: ρA for a, ρI_z for b
 /// (multiplies y), ρI_y for c (multiplies z).
 #[inline]
@@ -432,10 +363,6 @@ fn gradients(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3) -> [[[Vec3; 3]; 
 
 fn mass_from_gradients(e: &ElemData, g: &[[[Vec3; 3]; 4]; NDOF]) -> Mat12 {
     let w = field_weights(&e.props);
-    // M = Σ over the 12 (Gauss point, field) pairs q of w_q G_qᵀ G_q, G_q the 3 × 12
-    // field gradient. Laid out as 36 rows of 12 contiguous dofs, each row of M is 36
-    // length-12 multiply-adds kept in registers: this vectorises, where per-entry 3-term
-    // dot products did not.
     let mut rows = [[0.0; NDOF]; 36];
     let mut wq = [0.0; 36];
     for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
@@ -449,10 +376,18 @@ fn mass_from_gradients(e: &ElemData, g: &[[[Vec3; 3]; 4]; NDOF]) -> Mat12 {
             }
         }
     }
+    mass_from_rows(&rows, &wq)
+}
+
+/// M = Σ over the 12 (Gauss point, field) pairs q of w_q G_qᵀ G_q, G_q the 3 × 12 field
+/// gradient. Laid out as 36 rows of 12 contiguous dofs, each row of M is 36 length-12
+/// multiply-adds kept in registers: this vectorises, where per-entry 3-term dot products
+/// did not. Exactly symmetric (the two triangles round differently, so one is copied).
+fn mass_from_rows(rows: &[[f64; NDOF]; 36], wq: &[f64; 36]) -> Mat12 {
     let mut m = [[0.0; NDOF]; NDOF];
     for (j, mj) in m.iter_mut().enumerate() {
         let mut acc = [0.0; NDOF];
-        for (r, wr) in rows.iter().zip(&wq) {
+        for (r, wr) in rows.iter().zip(wq) {
             let a = wr * r[j];
             for (x, y) in acc.iter_mut().zip(r) {
                 *x += a * y;
@@ -460,7 +395,6 @@ fn mass_from_gradients(e: &ElemData, g: &[[[Vec3; 3]; 4]; NDOF]) -> Mat12 {
         }
         *mj = acc;
     }
-    // exactly symmetric (the two triangles round differently)
     for j in 0..NDOF {
         for k in j + 1..NDOF {
             m[k][j] = m[j][k];
@@ -495,55 +429,179 @@ fn project_ab(e: &ElemData, g: &FieldGrads, h: &[[[HyperDual; 3]; 3]; 4]) -> Vec
     })
 }
 
-/// What every inertia evaluation shares: node frames, field gradients, M and S.
-fn mass_and_quadratic(
-    e: &ElemData,
-    s: &ElemState,
-    v: &Vec12,
-) -> ((Mat3, Mat3), FieldGrads, Mat12, Vec12) {
-    let (t1, t2) = node_frames(e, s);
-    let g = gradients_closed(e, s, &t1, &t2);
-    let m = mass_from_gradients(e, &g);
-    // S_j = ∫ μ g_j · H(v, v), H the second derivative of the position field
-    let sv = project_ab(e, &g, &field_derivs(e, s, &t1, &t2, v, v));
-    ((t1, t2), g, m, sv)
+/// Field gradients g (and, in the full evaluation, their time derivatives ġ along the
+/// nodal velocities) laid out as 36 rows (Gauss point, field, component) of 12 dofs,
+/// with the μ-weights of the rows: every inertia quantity is a sum over these rows.
+struct GradRows {
+    g: [[f64; NDOF]; 36],
+    gdot: [[f64; NDOF]; 36],
+    w: [f64; 36],
 }
 
-/// Inertia terms at nodal velocities `v` = (ẋ1, ω1, ẋ2, ω2) (spatial angular velocities):
-/// the mass matrix M, the quadratic-velocity vector S = ∫ μ gᵀ ġ q̇ dΩ (paper eq. 19), and
-/// its velocity derivative C = ∂S/∂v (gyroscopic/Coriolis matrix for the Newton Jacobian).
-/// The inertial nodal force is M a + S with a = (ẍ1, α1, ẍ2, α2).
-pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
-    let ((t1, t2), g, m, sv) = mass_and_quadratic(e, s, v);
-    let w = field_weights(&e.props);
-    let mut c = [[0.0; NDOF]; NDOF];
-    if v.iter().any(|x| *x != 0.0) {
-        // C_jk = 2 ∫ μ g_j · H(v, e_k): all 12 columns from one lane-vector pass
-        let h = field_derivs_lanes(e, s, &t1, &t2, v);
-        for (j, cj) in c.iter_mut().enumerate() {
-            let mut acc = [0.0; LANES];
-            for (gp, (_, wg)) in GAUSS4.iter().enumerate() {
-                for f in 0..3 {
-                    let gj = g[j][gp][f];
-                    let hh = &h[gp][f];
-                    for (l, al) in acc.iter_mut().enumerate() {
-                        let hv = [hh[0].ab[l], hh[1].ab[l], hh[2].ab[l]];
-                        *al += wg * w[f] * crate::math::dot(gj, hv);
-                    }
-                }
+impl GradRows {
+    /// Rows of g from the f64 gradients, or of g and ġ from one dual-number pass with the
+    /// nodes moving along `v` (`with_rates`; the value parts of that pass do exactly the
+    /// f64 arithmetic, so g is bit-identical either way).
+    fn new(e: &ElemData, s: &ElemState, v: &Vec12, with_rates: bool) -> Self {
+        let (t1, t2) = node_frames(e, s);
+        let wf = field_weights(&e.props);
+        let w = std::array::from_fn(|q| GAUSS4[q / 9].1 * wf[(q / 3) % 3] * e.l0);
+        if with_rates {
+            let (u1, tt1) = perturb_dual(s.u1, &t1, &v[0..6]);
+            let (u2, tt2) = perturb_dual(s.u2, &t2, &v[6..12]);
+            let gd = gradients_closed_generic(e, u1, u2, &tt1, &tt2);
+            GradRows {
+                g: gd.map(|r| r.map(|x| x.v)),
+                gdot: gd.map(|r| r.map(|x| x.d)),
+                w,
             }
-            for (k, cjk) in cj.iter_mut().enumerate() {
-                let (l, sg) = lane_of_dof(k);
-                *cjk = sg * (2.0 * acc[l] * e.l0);
+        } else {
+            GradRows {
+                g: gradients_closed_generic(e, s.u1, s.u2, &t1, &t2),
+                gdot: [[0.0; NDOF]; 36],
+                w,
             }
         }
     }
-    (m, sv, c)
+
+    /// S = ∫ μ gᵀ H(v, v), H the symmetric second derivative of the position field, from
+    /// one hyper-dual pass (cheaper than ġ when only S is wanted).
+    fn quadratic(&self, e: &ElemData, s: &ElemState, v: &Vec12) -> Vec12 {
+        let mut sv = [0.0; NDOF];
+        if v.iter().all(|x| *x == 0.0) {
+            return sv;
+        }
+        let (t1, t2) = node_frames(e, s);
+        let h = field_derivs(e, s, &t1, &t2, v, v);
+        for (q, (row, wr)) in self.g.iter().zip(&self.w).enumerate() {
+            let a = wr * h[q / 9][(q / 3) % 3][q % 3].ab;
+            for (x, y) in sv.iter_mut().zip(row) {
+                *x += a * y;
+            }
+        }
+        sv
+    }
+
+    /// (M x, M y) = Σ_q w_q g_q (g_q · x), likewise y: products with M without forming it.
+    fn mass_times(&self, x: &Vec12, y: &Vec12) -> (Vec12, Vec12) {
+        let (mut mx, mut my) = ([0.0; NDOF], [0.0; NDOF]);
+        for (row, wr) in self.g.iter().zip(&self.w) {
+            let (mut gx, mut gy) = (0.0, 0.0);
+            for ((r, xa), ya) in row.iter().zip(x).zip(y) {
+                gx += r * xa;
+                gy += r * ya;
+            }
+            let (a, b) = (wr * gx, wr * gy);
+            for ((p, q), r) in mx.iter_mut().zip(my.iter_mut()).zip(row) {
+                *p += a * r;
+                *q += b * r;
+            }
+        }
+        (mx, my)
+    }
 }
 
-/// Reference for the C of [`inertia`]: one hyper-dual pass per column.
+/// What the residual needs of an element's inertia: the inertial force M·acc + S and
+/// M·v (kinetic energy, mass-proportional damping), and S itself.
+#[derive(Clone, Copy, Debug)]
+pub struct InertiaForces {
+    pub finert: Vec12,
+    pub mv: Vec12,
+    pub s: Vec12,
+}
+
+/// The inertia quantities of the full (Jacobian) evaluation.
+#[derive(Clone, Copy, Debug)]
+pub struct Inertia {
+    pub m: Mat12,
+    pub c: Mat12,
+    pub forces: InertiaForces,
+}
+
+fn forces_from_rows(
+    r: &GradRows,
+    e: &ElemData,
+    s: &ElemState,
+    v: &Vec12,
+    acc: &Vec12,
+) -> InertiaForces {
+    let sv = r.quadratic(e, s, v);
+    let (ma, mv) = r.mass_times(acc, v);
+    InertiaForces {
+        finert: std::array::from_fn(|i| ma[i] + sv[i]),
+        mv,
+        s: sv,
+    }
+}
+
+/// Inertia terms at nodal velocities `v` = (ẋ1, ω1, ẋ2, ω2) (spatial angular velocities)
+/// and accelerations `acc` = (ẍ1, α1, ẍ2, α2): the mass matrix M = ∫ μ gᵀ g, the
+/// quadratic-velocity vector S = ∫ μ gᵀ ġ q̇ dΩ (paper eq. 19), its velocity derivative
+/// C = ∂S/∂v (gyroscopic/Coriolis matrix for the Newton Jacobian), and the inertial nodal
+/// force M acc + S.
+///
+/// With H(·,·) the symmetric second derivative of the position field (spins composed
+/// symmetrically), S = ∫ μ gᵀ H(v, v) and C = 2 ∫ μ gᵀ H(v, e_k). The time derivative of
+/// a gradient column along the motion, ġ_k, differs from H(v, e_k) only by the order in
+/// which the spin of column k and the nodal angular velocity ω are composed:
+/// ġ_k = H(v, e_k) + ½ g (e_k × ω) for a spin column k of a node (zero otherwise). So with
+/// P = ∫ μ gᵀ ġ, C = 2P + M · blockdiag(0, skew ω1, 0, skew ω2): one dual-number pass of
+/// the closed-form gradients gives g and ġ. Checked against one hyper-dual pass per column
+/// ([`inertia_columns`]) and against finite differences of S.
+pub fn inertia_full(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> Inertia {
+    let moving = v.iter().any(|x| *x != 0.0);
+    let r = GradRows::new(e, s, v, moving);
+    let m = mass_from_rows(&r.g, &r.w);
+    let mut c = [[0.0; NDOF]; NDOF];
+    if moving {
+        for (j, cj) in c.iter_mut().enumerate() {
+            let mut acc_c = [0.0; NDOF];
+            for ((row, rowd), wr) in r.g.iter().zip(&r.gdot).zip(&r.w) {
+                let a = 2.0 * wr * row[j];
+                for (x, y) in acc_c.iter_mut().zip(rowd) {
+                    *x += a * y;
+                }
+            }
+            *cj = acc_c;
+        }
+        for node in 0..2 {
+            let o = 6 * node + 3;
+            let sk = crate::math::skew([v[o], v[o + 1], v[o + 2]]);
+            for (j, cj) in c.iter_mut().enumerate() {
+                for k in 0..3 {
+                    cj[o + k] += (0..3).map(|i| m[j][o + i] * sk[i][k]).sum::<f64>();
+                }
+            }
+        }
+    }
+    Inertia {
+        m,
+        c,
+        forces: forces_from_rows(&r, e, s, v, acc),
+    }
+}
+
+/// M, S and C of [`inertia_full`].
+pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
+    let r = inertia_full(e, s, v, &[0.0; NDOF]);
+    (r.m, r.forces.s, r.c)
+}
+
+/// The inertial forces of [`inertia_full`] without M and C (for residual-only Newton
+/// iterations): from the f64 gradients and the same arithmetic as there, so they are
+/// bit-identical to [`inertia_full`]'s, and M is never formed (a product with M costs
+/// 2 × 36 × 12 multiply-adds, forming it 36 × 144).
+pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> InertiaForces {
+    forces_from_rows(&GradRows::new(e, s, v, false), e, s, v, acc)
+}
+
+/// Reference for [`inertia`]: M from the f64 closed-form gradients, S and each column of
+/// C from one hyper-dual pass over the position field (no time derivatives of gradients).
 pub fn inertia_columns(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) {
-    let ((t1, t2), g, m, sv) = mass_and_quadratic(e, s, v);
+    let (t1, t2) = node_frames(e, s);
+    let g = gradients_closed(e, s, &t1, &t2);
+    let m = mass_from_gradients(e, &g);
+    let sv = project_ab(e, &g, &field_derivs(e, s, &t1, &t2, v, v));
     let mut c = [[0.0; NDOF]; NDOF];
     if v.iter().any(|x| *x != 0.0) {
         for k in 0..NDOF {
@@ -554,13 +612,6 @@ pub fn inertia_columns(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12,
         }
     }
     (m, sv, c)
-}
-
-/// M and S of [`inertia`] without C (for residual-only Newton iterations); the same
-/// arithmetic as there, so M and S are bit-identical to [`inertia`]'s.
-pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12) {
-    let (_, _, m, sv) = mass_and_quadratic(e, s, v);
-    (m, sv)
 }
 
 /// Section forces at station ξ ∈ [0, 1], convected frame: [N, Vy, Vz, T, My, Mz].
@@ -873,64 +924,84 @@ pub fn internal_force_tangent_columns(e: &ElemData, s: &ElemState) -> (Vec12, Ma
     (f, k)
 }
 
-/// g_j = ∂(a, b, c)/∂q_j at the Gauss points, in closed form from [`gradient`]:
+/// g_j = ∂(a, b, c)/∂q_j at the Gauss points, in closed form from [`gradient`], as 36 rows
+/// (Gauss point, field, component) of 12 dofs:
 /// δa = δx1 + ξ δl + δθ_C × (a − x1 − ξ l) + T_C δ[0, u_y, u_z],
 /// δb = δθ_C × b + T_C δ[−θz, 0, θx], δc = δθ_C × c + T_C δ[θy, −θx, 0].
-fn gradients_closed(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3) -> [[[Vec3; 3]; 4]; NDOF] {
-    let g = gradient(e.chord0, e.l0, s.u1, s.u2, t1, t2);
+/// Generic: in [`Dual`] numbers along the nodal velocities it also gives their time
+/// derivatives ġ_j (see [`inertia_full`]); public so the element bench can count its
+/// floating-point operations.
+#[inline]
+pub fn gradients_closed_generic<R: Real>(
+    e: &ElemData,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+) -> [[R; NDOF]; 36] {
+    let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
     let k = &g.kin;
     let tc = &k.tc;
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
     let len = k.len;
-    let mut out = [[[[0.0; 3]; 3]; 4]; NDOF];
+    let z = R::cst(0.0);
+    let mut out = [[z; NDOF]; 36];
     for (gp, (xi, _)) in GAUSS4.iter().enumerate() {
         let xi = *xi;
-        let n1 = xi - 2.0 * xi * xi + xi * xi * xi;
-        let n2 = -xi * xi + xi * xi * xi;
-        let d1 = 1.0 - 4.0 * xi + 3.0 * xi * xi;
-        let d2 = -2.0 * xi + 3.0 * xi * xi;
-        let uy = len * (n1 * fz1 + n2 * fz2);
-        let uz = -len * (n1 * fy1 + n2 * fy2);
-        let thx = (1.0 - xi) * fx1 + xi * fx2;
+        let n1 = R::cst(xi - 2.0 * xi * xi + xi * xi * xi);
+        let n2 = R::cst(-xi * xi + xi * xi * xi);
+        let d1 = R::cst(1.0 - 4.0 * xi + 3.0 * xi * xi);
+        let d2 = R::cst(-2.0 * xi + 3.0 * xi * xi);
+        let (c0, c1) = (R::cst(1.0 - xi), R::cst(xi));
+        let wz = n1 * fz1 + n2 * fz2;
+        let wy = n1 * fy1 + n2 * fy2;
+        let uy = len * wz;
+        let uz = -(len * wy);
+        let thx = c0 * fx1 + c1 * fx2;
         let thy = d1 * fy1 + d2 * fy2;
         let thz = d1 * fz1 + d2 * fz2;
         // current field offsets in the convected frame
-        let ra = crate::math::mat_vec(tc, [0.0, uy, uz]);
-        let rb = crate::math::mat_vec(tc, [-thz, 1.0, thx]);
-        let rc = crate::math::mat_vec(tc, [thy, -thx, 1.0]);
+        let ra = mvec(tc, [z, uy, uz]);
+        let rb = mvec(tc, [-thz, R::cst(1.0), thx]);
+        let rc = mvec(tc, [thy, -thx, R::cst(1.0)]);
         for j in 0..NDOF {
             let dth = [g.dtheta[0][j], g.dtheta[1][j], g.dtheta[2][j]];
             let dp = |a: usize| g.dphi[a][j];
-            let duy = g.dlen[j] * (n1 * fz1 + n2 * fz2) + len * (n1 * dp(2) + n2 * dp(5));
-            let duz = -(g.dlen[j] * (n1 * fy1 + n2 * fy2) + len * (n1 * dp(1) + n2 * dp(4)));
-            let dthx = (1.0 - xi) * dp(0) + xi * dp(3);
+            let duy = g.dlen[j] * wz + len * (n1 * dp(2) + n2 * dp(5));
+            let duz = -(g.dlen[j] * wy + len * (n1 * dp(1) + n2 * dp(4)));
+            let dthx = c0 * dp(0) + c1 * dp(3);
             let dthy = d1 * dp(1) + d2 * dp(4);
             let dthz = d1 * dp(2) + d2 * dp(5);
-            let mut da = crate::math::add(
-                crate::math::cross(dth, ra),
-                crate::math::mat_vec(tc, [0.0, duy, duz]),
-            );
+            let mut da = vadd(vcross(dth, ra), mvec(tc, [z, duy, duz]));
             if j < 3 {
-                da[j] += 1.0 - xi;
+                da[j] = da[j] + c0;
             } else if (6..9).contains(&j) {
-                da[j - 6] += xi;
+                da[j - 6] = da[j - 6] + c1;
             }
-            let db = crate::math::add(
-                crate::math::cross(dth, rb),
-                crate::math::mat_vec(tc, [-dthz, 0.0, dthx]),
-            );
-            let dc = crate::math::add(
-                crate::math::cross(dth, rc),
-                crate::math::mat_vec(tc, [dthy, -dthx, 0.0]),
-            );
-            out[j][gp] = [da, db, dc];
+            let db = vadd(vcross(dth, rb), mvec(tc, [-dthz, z, dthx]));
+            let dc = vadd(vcross(dth, rc), mvec(tc, [dthy, -dthx, z]));
+            for (f, d) in [da, db, dc].iter().enumerate() {
+                for c in 0..3 {
+                    out[9 * gp + 3 * f + c][j] = d[c];
+                }
+            }
         }
     }
     out
 }
 
+/// [`gradients_closed_generic`] in f64, laid out by dof (for the reference routes).
+fn gradients_closed(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3) -> FieldGrads {
+    let rows = gradients_closed_generic(e, s.u1, s.u2, t1, t2);
+    std::array::from_fn(|j| {
+        std::array::from_fn(|gp| {
+            std::array::from_fn(|f| std::array::from_fn(|c| rows[9 * gp + 3 * f + c][j]))
+        })
+    })
+}
+
 /// Consistent, configuration-dependent mass matrix M = ∫ μ gᵀ g dΩ (paper eq. 19).
 pub fn mass_matrix(e: &ElemData, s: &ElemState) -> Mat12 {
-    let (t1, t2) = node_frames(e, s);
-    mass_from_gradients(e, &gradients_closed(e, s, &t1, &t2))
+    let r = GradRows::new(e, s, &[0.0; NDOF], false);
+    mass_from_rows(&r.g, &r.w)
 }

@@ -14,10 +14,15 @@ pub struct ElemIn {
     pub state: ElemState,
     /// nodal velocities (ẋ1, ω1, ẋ2, ω2) for the quadratic-velocity terms (zero in statics)
     pub v12: Vec12,
+    /// what multiplies M in the inertial force M·acc + S: the nodal accelerations
+    /// (ẍ1, α1, ẍ2, α2), minus the gravity field as a rigid translation (its consistent
+    /// load is −M g)
+    pub acc: Vec12,
 }
 
 /// Per-element output of the element stage. Every field is written on every call: the
-/// inertia fields are zero when inertia was not asked for.
+/// inertia fields are zero when inertia was not asked for, and the matrices (K, M, C) are
+/// zero in a residual-only evaluation.
 #[derive(Clone, Copy, Debug)]
 pub struct ElemOut {
     pub f: Vec12,
@@ -26,6 +31,25 @@ pub struct ElemOut {
     pub m: Mat12,
     pub s: Vec12,
     pub c: Mat12,
+    /// inertial force M·acc + S
+    pub finert: Vec12,
+    /// M·v12 (kinetic energy, mass-proportional damping)
+    pub mv: Vec12,
+}
+
+impl ElemOut {
+    /// `finert` and `mv` from M and S, for backends that return the matrices only.
+    pub fn products_from_m(&mut self, i: &ElemIn) {
+        for r in 0..NDOF {
+            let (mut a, mut b) = (0.0, 0.0);
+            for c in 0..NDOF {
+                a += self.m[r][c] * i.acc[c];
+                b += self.m[r][c] * i.v12[c];
+            }
+            self.finert[r] = a + self.s[r];
+            self.mv[r] = b;
+        }
+    }
 }
 
 impl Default for ElemOut {
@@ -37,6 +61,8 @@ impl Default for ElemOut {
             m: [[0.0; NDOF]; NDOF],
             s: [0.0; NDOF],
             c: [[0.0; NDOF]; NDOF],
+            finert: [0.0; NDOF],
+            mv: [0.0; NDOF],
         }
     }
 }
@@ -60,8 +86,8 @@ pub trait ElementEval: Send + Sync {
         out: &mut [ElemOut],
     ) -> Result<(), EvalError>;
     /// As [`evaluate`](Self::evaluate) for a residual-only Newton iteration (modified
-    /// Newton): only f, energy, M and S are used, so K and C may be skipped (written as
-    /// zero). The default evaluates everything.
+    /// Newton): only f, energy, finert and mv are used, so K, M and C may be skipped
+    /// (written as zero). The default evaluates everything.
     fn evaluate_residual(
         &self,
         elems: &[ElemData],
@@ -96,34 +122,41 @@ impl CpuEval {
         o.k = k;
         o.energy = beam::strain_energy(e, &i.state);
         if inertia {
-            let (m, s, c) = beam::inertia(e, &i.state, &i.v12);
-            o.m = m;
-            o.s = s;
-            o.c = c;
+            let r = beam::inertia_full(e, &i.state, &i.v12, &i.acc);
+            o.m = r.m;
+            o.c = r.c;
+            o.s = r.forces.s;
+            o.finert = r.forces.finert;
+            o.mv = r.forces.mv;
         } else {
             o.m = [[0.0; NDOF]; NDOF];
             o.s = [0.0; NDOF];
             o.c = [[0.0; NDOF]; NDOF];
+            o.finert = [0.0; NDOF];
+            o.mv = [0.0; NDOF];
         }
     }
 }
 
 impl CpuEval {
-    /// One element without the tangents: the closed-form force (no dual-number
-    /// columns) and the inertia without C (one hyper-dual pass instead of 13).
+    /// One element without the matrices: the closed-form force (no dual-number
+    /// columns) and the inertial forces from the f64 field gradients (M never formed).
     #[inline]
     pub fn one_residual(e: &ElemData, i: &ElemIn, inertia: bool, o: &mut ElemOut) {
         o.f = beam::internal_force(e, &i.state);
         o.k = [[0.0; NDOF]; NDOF];
         o.energy = beam::strain_energy(e, &i.state);
         o.c = [[0.0; NDOF]; NDOF];
+        o.m = [[0.0; NDOF]; NDOF];
         if inertia {
-            let (m, s) = beam::inertia_residual(e, &i.state, &i.v12);
-            o.m = m;
-            o.s = s;
+            let r = beam::inertia_residual(e, &i.state, &i.v12, &i.acc);
+            o.s = r.s;
+            o.finert = r.finert;
+            o.mv = r.mv;
         } else {
-            o.m = [[0.0; NDOF]; NDOF];
             o.s = [0.0; NDOF];
+            o.finert = [0.0; NDOF];
+            o.mv = [0.0; NDOF];
         }
     }
 }

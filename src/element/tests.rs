@@ -434,46 +434,97 @@ fn closed_form_force_tangent_and_mass_equal_the_hyper_dual_reference() {
 #[test]
 fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() {
     // modified Newton mixes both evaluations within a step: they must agree exactly on
-    // what the residual uses (f, energy, M, S), or the converged state would depend on
-    // when the Jacobian was refreshed
+    // what the residual uses (f, energy, the inertial force M·acc + S, M·v), or the
+    // converged state would depend on when the Jacobian was refreshed
     let mut rng = Lcg(7);
-    for _ in 0..50 {
+    for case in 0..50 {
         let (e, s) = random_case(&mut rng, 0.05);
-        let v12: Vec12 = std::array::from_fn(|_| rng.next());
-        let i = ElemIn { state: s, v12 };
+        // every fifth case at rest: the full evaluation then takes the f64 path too
+        let v12: Vec12 = std::array::from_fn(|_| if case % 5 == 0 { 0.0 } else { rng.next() });
+        let acc: Vec12 = std::array::from_fn(|_| 10.0 * rng.next());
+        let i = ElemIn { state: s, v12, acc };
         let (mut full, mut res) = (ElemOut::default(), ElemOut::default());
         CpuEval::one(&e, &i, true, &mut full);
         CpuEval::one_residual(&e, &i, true, &mut res);
         assert_eq!(full.f, res.f);
         assert_eq!(full.energy, res.energy);
-        assert_eq!(full.m, res.m);
         assert_eq!(full.s, res.s);
+        assert_eq!(full.finert, res.finert);
+        assert_eq!(full.mv, res.mv);
         assert!(res
             .k
             .iter()
             .flatten()
             .chain(res.c.iter().flatten())
+            .chain(res.m.iter().flatten())
             .all(|x| *x == 0.0));
+        // and the products are those of the M it returns, to round-off
+        let mut viam = full;
+        viam.products_from_m(&i);
+        let sc = max_abs(&viam.finert).max(1e-300);
+        for r in 0..NDOF {
+            assert!(
+                (viam.finert[r] - full.finert[r]).abs() <= 1e-13 * sc,
+                "finert[{r}]"
+            );
+            assert!(
+                (viam.mv[r] - full.mv[r]).abs() <= 1e-13 * max_abs(&viam.mv).max(1e-300),
+                "mv[{r}]"
+            );
+        }
     }
 }
 
 #[test]
 fn vector_lane_tangents_are_bit_identical_to_one_pass_per_column() {
-    // K and C come from one vector-dual pass with 9 lanes (node 1's translation columns
-    // are the negated node 2's); each lane must do exactly the arithmetic of its own
-    // scalar pass, so the fast path changes no number anywhere
+    // K comes from one vector-dual pass with 9 lanes (node 1's translation columns are
+    // the negated node 2's); each lane must do exactly the arithmetic of its own scalar
+    // pass, so the fast path changes no number anywhere
     let mut rng = Lcg(41);
     for _ in 0..50 {
         let (e, s) = random_case(&mut rng, 0.1);
-        let v: Vec12 = std::array::from_fn(|_| 3.0 * rng.next());
         let (f, k) = internal_force_tangent(&e, &s);
         let (fr, kr) = internal_force_tangent_columns(&e, &s);
         assert_eq!(f, fr);
         assert_eq!(k, kr);
+    }
+}
+
+#[test]
+fn inertia_from_gradient_time_derivatives_equals_the_hyper_dual_reference() {
+    // M, S and C from one dual-number pass of the closed-form field gradients (ġ along
+    // the nodal velocities, with the spin-ordering correction of `inertia`) against M
+    // from the f64 gradients and S, C from one hyper-dual pass over the position field
+    // per column: independent routes, so agreement to 1e-12 of each matrix's largest
+    // entry (≈ 50 ulp: both sum ~10³ terms) rules out a wrong sign or a missing term
+    let mut rng = Lcg(41);
+    for case in 0..50 {
+        let (e, s) = random_case(&mut rng, 0.1);
+        let v: Vec12 = std::array::from_fn(|_| 3.0 * rng.next());
         let (m, sv, c) = inertia(&e, &s, &v);
         let (mr, svr, cr) = inertia_columns(&e, &s, &v);
-        assert_eq!(m, mr);
-        assert_eq!(sv, svr);
-        assert_eq!(c, cr);
+        let ms = mr.iter().map(|r| max_abs(r)).fold(0.0, f64::max);
+        let cs = cr.iter().map(|r| max_abs(r)).fold(0.0, f64::max);
+        let ss = max_abs(&svr);
+        for i in 0..NDOF {
+            assert!(
+                (sv[i] - svr[i]).abs() <= 1e-12 * ss,
+                "case {case} S[{i}] {} vs {}",
+                sv[i],
+                svr[i]
+            );
+            for j in 0..NDOF {
+                assert!(
+                    (m[i][j] - mr[i][j]).abs() <= 1e-12 * ms,
+                    "case {case} M[{i}][{j}]"
+                );
+                assert!(
+                    (c[i][j] - cr[i][j]).abs() <= 1e-12 * cs,
+                    "case {case} C[{i}][{j}] {} vs {}",
+                    c[i][j],
+                    cr[i][j]
+                );
+            }
+        }
     }
 }

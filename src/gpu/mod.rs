@@ -55,6 +55,8 @@ fn corotate(e: &ElemData, i: &ElemIn) -> (ElemData, ElemIn, Mat3) {
             r2: mat_mul(&q, &t2),
         },
         v12,
+        // the kernels do not use it: M·acc is formed on the host (`products_from_m`)
+        acc: [0.0; NDOF],
     };
     (e2, i2, q)
 }
@@ -599,6 +601,16 @@ impl GpuContext {
         if self.corotate {
             for (o, q) in out.iter_mut().zip(&self.rot) {
                 corotate_back(q, o);
+            }
+        }
+        if inertia {
+            for (o, i) in out.iter_mut().zip(inputs) {
+                o.products_from_m(i);
+            }
+        } else {
+            for o in out.iter_mut() {
+                o.finert = [0.0; NDOF];
+                o.mv = [0.0; NDOF];
             }
         }
         let t3 = Instant::now();
