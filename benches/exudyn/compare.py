@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """Peer comparison latdyn vs Exudyn (issue 7, item 3): time-to-error on the rotating
 cantilever (first flapwise frequency at Ω̄ = 5) and the spin-up beam (peak tip
-deflection), and ensemble throughput on the flapping-blade campaign.
+deflection), and ensemble throughput on the flapping-blade campaign, at equal mesh and
+step and at equal error (tip height and mid-span moment histories).
 
     cargo build --release
     pip install exudyn numpy scipy matplotlib
-    python3 benches/exudyn/compare.py            # full run, ~20-25 min on 2 loaded cores
-    python3 benches/exudyn/compare.py --quick    # shorter ladders, ~8 min
+    python3 benches/exudyn/compare.py            # full run, ~7 min on 2 cores
+    python3 benches/exudyn/compare.py --quick    # shorter ladders, 100 variants
 
 Writes docs/bench/exudyn.md and docs/bench/exudyn.png (relative to the repository root).
 Both codes are run from this one script, interleaved rung by rung; runs shorter than
