@@ -964,27 +964,37 @@ pub fn gradients_closed_generic<R: Real>(
         let ra = mvec(tc, [z, uy, uz]);
         let rb = mvec(tc, [-thz, R::cst(1.0), thx]);
         let rc = mvec(tc, [thy, -thx, R::cst(1.0)]);
+        // the derivatives of the bending and twist fields, dof by dof (loops over the 12
+        // dofs with scalar coefficients: they vectorise)
+        let (mut duy, mut duz) = ([z; NDOF], [z; NDOF]);
+        let (mut dthx, mut dthy, mut dthz) = ([z; NDOF], [z; NDOF], [z; NDOF]);
+        let dp = &g.dphi;
         for j in 0..NDOF {
-            let dth = [g.dtheta[0][j], g.dtheta[1][j], g.dtheta[2][j]];
-            let dp = |a: usize| g.dphi[a][j];
-            let duy = g.dlen[j] * wz + len * (n1 * dp(2) + n2 * dp(5));
-            let duz = -(g.dlen[j] * wy + len * (n1 * dp(1) + n2 * dp(4)));
-            let dthx = c0 * dp(0) + c1 * dp(3);
-            let dthy = d1 * dp(1) + d2 * dp(4);
-            let dthz = d1 * dp(2) + d2 * dp(5);
-            let mut da = vadd(vcross(dth, ra), mvec(tc, [z, duy, duz]));
-            if j < 3 {
-                da[j] = da[j] + c0;
-            } else if (6..9).contains(&j) {
-                da[j - 6] = da[j - 6] + c1;
+            duy[j] = g.dlen[j] * wz + len * (n1 * dp[2][j] + n2 * dp[5][j]);
+            duz[j] = -(g.dlen[j] * wy + len * (n1 * dp[1][j] + n2 * dp[4][j]));
+            dthx[j] = c0 * dp[0][j] + c1 * dp[3][j];
+            dthy[j] = d1 * dp[1][j] + d2 * dp[4][j];
+            dthz[j] = d1 * dp[2][j] + d2 * dp[5][j];
+        }
+        // δa = δθ_C × ra + T_C [0, δu_y, δu_z] (+ the chord share below),
+        // δb = δθ_C × rb + T_C [−δθz, 0, δθx], δc = δθ_C × rc + T_C [δθy, −δθx, 0]
+        let dth = &g.dtheta;
+        for c in 0..3 {
+            let (p, q) = ((c + 1) % 3, (c + 2) % 3);
+            let t = tc[c];
+            let base = 9 * gp + c;
+            for j in 0..NDOF {
+                out[base][j] = (dth[p][j] * ra[q] - dth[q][j] * ra[p])
+                    + (t[0] * z + t[1] * duy[j] + t[2] * duz[j]);
+                out[base + 3][j] = (dth[p][j] * rb[q] - dth[q][j] * rb[p])
+                    + (t[0] * (-dthz[j]) + t[1] * z + t[2] * dthx[j]);
+                out[base + 6][j] = (dth[p][j] * rc[q] - dth[q][j] * rc[p])
+                    + (t[0] * dthy[j] + t[1] * (-dthx[j]) + t[2] * z);
             }
-            let db = vadd(vcross(dth, rb), mvec(tc, [-dthz, z, dthx]));
-            let dc = vadd(vcross(dth, rc), mvec(tc, [dthy, -dthx, z]));
-            for (f, d) in [da, db, dc].iter().enumerate() {
-                for c in 0..3 {
-                    out[9 * gp + 3 * f + c][j] = d[c];
-                }
-            }
+        }
+        for c in 0..3 {
+            out[9 * gp + c][c] = out[9 * gp + c][c] + c0;
+            out[9 * gp + c][6 + c] = out[9 * gp + c][6 + c] + c1;
         }
     }
     out
