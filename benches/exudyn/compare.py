@@ -324,12 +324,9 @@ def _exu_blade(args):
     return omega, float(z[-1]), time.perf_counter() - t0
 
 
-def ensemble(L, args):
-    n_var = 100 if args.quick else 1000
-    t_end, dt, ne = args.ens_tend, 0.005, 10
-    steps = int(round(t_end / dt))
-    omegas = np.linspace(1.0, 9.0, n_var)
-    # latdyn: one sweep process, 2 threads
+def _lat_sweep(L, n_var, t_end, dt, ne):
+    """The blade campaign as one latdyn sweep process on 2 threads (campaign file in a
+    temporary directory): (sweep JSON, process wall time)."""
     with tempfile.TemporaryDirectory() as td:
         out = os.path.join(td, "campaign.h5")
         cmd = [L.exe, "sweep", FB_MODEL, "--vary", f"omega=1:9:{n_var}", "--set",
@@ -337,10 +334,19 @@ def ensemble(L, args):
                "--threads", "2", "--json", "-o", out]
         t0 = time.perf_counter()
         p = subprocess.run(cmd, capture_output=True, text=True)
-        lat_wall = time.perf_counter() - t0
+        wall = time.perf_counter() - t0
         if p.returncode != 0:
             raise RuntimeError(p.stderr[-2000:])
-        d = json.loads(p.stdout)
+        return json.loads(p.stdout), wall
+
+
+def ensemble(L, args):
+    n_var = 100 if args.quick else 1000
+    t_end, dt, ne = args.ens_tend, 0.005, 10
+    steps = int(round(t_end / dt))
+    omegas = np.linspace(1.0, 9.0, n_var)
+    # latdyn: one sweep process, 2 threads
+    d, lat_wall = _lat_sweep(L, n_var, t_end, dt, ne)
     vs = d["variants"]
     ok = [v for v in vs if v["status"] == "completed"]
     lat_steps = sum(v["steps"] for v in ok)
@@ -497,17 +503,7 @@ def ensemble_equal_error(L, args):
         if lc is None or ec is None:
             continue
         tag = f"{key}"
-        with tempfile.TemporaryDirectory() as td:
-            out = os.path.join(td, "campaign.h5")
-            cmd = [L.exe, "sweep", FB_MODEL, "--vary", f"omega=1:9:{n_var}", "--set",
-                   f"t_end={EQ_TEND}", "--set", f"dt={lc[1]}", "--set", f"elements={lc[0]}",
-                   "--threads", "2", "--json", "-o", out]
-            t0 = time.perf_counter()
-            p = subprocess.run(cmd, capture_output=True, text=True)
-            lat_wall = time.perf_counter() - t0
-            if p.returncode != 0:
-                raise RuntimeError(p.stderr[-2000:])
-            d = json.loads(p.stdout)
+        d, lat_wall = _lat_sweep(L, n_var, EQ_TEND, lc[1], lc[0])
         ok = sum(1 for v in d["variants"] if v["status"] == "completed")
         # Exudyn: an evenly spaced subset sized for about a minute of its pool
         per_var = statistics.median(

@@ -436,6 +436,8 @@ struct GradRows {
     g: [[f64; NDOF]; 36],
     gdot: [[f64; NDOF]; 36],
     w: [f64; 36],
+    /// the node frames the rows were taken at
+    frames: (Mat3, Mat3),
 }
 
 impl GradRows {
@@ -454,12 +456,14 @@ impl GradRows {
                 g: gd.map(|r| r.map(|x| x.v)),
                 gdot: gd.map(|r| r.map(|x| x.d)),
                 w,
+                frames: (t1, t2),
             }
         } else {
             GradRows {
                 g: gradients_closed_generic(e, s.u1, s.u2, &t1, &t2),
                 gdot: [[0.0; NDOF]; 36],
                 w,
+                frames: (t1, t2),
             }
         }
     }
@@ -471,8 +475,8 @@ impl GradRows {
         if v.iter().all(|x| *x == 0.0) {
             return sv;
         }
-        let (t1, t2) = node_frames(e, s);
-        let h = field_derivs(e, s, &t1, &t2, v, v);
+        let (t1, t2) = &self.frames;
+        let h = field_derivs(e, s, t1, t2, v, v);
         for (q, (row, wr)) in self.g.iter().zip(&self.w).enumerate() {
             let a = wr * h[q / 9][(q / 3) % 3][q % 3].ab;
             for (x, y) in sv.iter_mut().zip(row) {
