@@ -134,7 +134,8 @@ class Latdyn:
     def __init__(self, exe):
         self.exe = exe
 
-    def run(self, model, sets, sensor):
+    def run_json(self, model, sets):
+        """`latdyn run MODEL --set ... --json`: (result object, process wall time)."""
         cmd = [self.exe, "run", model, "--json"]
         for k, v in sets.items():
             cmd += ["--set", f"{k}={v}"]
@@ -146,6 +147,10 @@ class Latdyn:
         d = json.loads(p.stdout)
         if d.get("status") != "completed":
             raise RuntimeError(f"{' '.join(cmd)}: status {d.get('status')}: {d.get('message')}")
+        return d, wall
+
+    def run(self, model, sets, sensor):
+        d, wall = self.run_json(model, sets)
         s = d["sensors"][sensor]
         t = np.array(s["t"])
         v = np.array(s["values"])[:, 0]
@@ -401,17 +406,7 @@ def _hist_err(t, y, t_ref, y_ref):
 
 
 def _lat_blade(L, omega, ne, dt, t_end):
-    cmd = [L.exe, "run", FB_MODEL, "--json"]
-    for k, v in {"omega": omega, "elements": ne, "dt": dt, "t_end": t_end}.items():
-        cmd += ["--set", f"{k}={v}"]
-    t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    if p.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed: {p.stderr[-2000:]}")
-    d = json.loads(p.stdout)
-    if d.get("status") != "completed":
-        raise RuntimeError(f"{' '.join(cmd)}: status {d.get('status')}: {d.get('message')}")
+    d, wall = L.run_json(FB_MODEL, {"omega": omega, "elements": ne, "dt": dt, "t_end": t_end})
     tip, mom = d["sensors"]["tip"], d["sensors"]["mid_moment"]
     z = np.array(tip["values"])[:, tip["components"].index("z")]
     return np.array(tip["t"]), z, np.array(mom["values"])[:, 0], wall, d
