@@ -322,7 +322,7 @@ impl Assembler {
         }
         // (b) the element stage
         let t_el = Instant::now();
-        // without a Jacobian to assemble, K and C are not needed (unless stiffness-
+        // without a Jacobian to assemble, K, M and C are not needed (unless stiffness-
         // proportional damping puts K into the residual)
         let tangent = sink.is_some() || model.solver.rayleigh_beta != 0.0;
         let evaluated = if tangent {

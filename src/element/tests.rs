@@ -493,10 +493,12 @@ fn vector_lane_tangents_are_bit_identical_to_one_pass_per_column() {
 #[test]
 fn inertia_from_gradient_time_derivatives_equals_the_hyper_dual_reference() {
     // M, S and C from one dual-number pass of the closed-form field gradients (ġ along
-    // the nodal velocities, with the spin-ordering correction of `inertia`) against M
+    // the nodal velocities, with the spin-ordering correction of `inertia_full`) against M
     // from the f64 gradients and S, C from one hyper-dual pass over the position field
-    // per column: independent routes, so agreement to 1e-12 of each matrix's largest
-    // entry (≈ 50 ulp: both sum ~10³ terms) rules out a wrong sign or a missing term
+    // per column: independent routes. A wrong sign or a missing term shows at O(1); the
+    // routes' round-off (each sums ~10³ products) measured 1.5e-15 of C's largest entry,
+    // 6.6e-16 of S's, M identical; 1e-13 (~500 ulp) leaves room for other states
+    // without hiding a real term
     let mut rng = Lcg(41);
     for case in 0..50 {
         let (e, s) = random_case(&mut rng, 0.1);
@@ -508,18 +510,18 @@ fn inertia_from_gradient_time_derivatives_equals_the_hyper_dual_reference() {
         let ss = max_abs(&svr);
         for i in 0..NDOF {
             assert!(
-                (sv[i] - svr[i]).abs() <= 1e-12 * ss,
+                (sv[i] - svr[i]).abs() <= 1e-13 * ss,
                 "case {case} S[{i}] {} vs {}",
                 sv[i],
                 svr[i]
             );
             for j in 0..NDOF {
                 assert!(
-                    (m[i][j] - mr[i][j]).abs() <= 1e-12 * ms,
+                    (m[i][j] - mr[i][j]).abs() <= 1e-13 * ms,
                     "case {case} M[{i}][{j}]"
                 );
                 assert!(
-                    (c[i][j] - cr[i][j]).abs() <= 1e-12 * cs,
+                    (c[i][j] - cr[i][j]).abs() <= 1e-13 * cs,
                     "case {case} C[{i}][{j}] {} vs {}",
                     c[i][j],
                     cr[i][j]
