@@ -467,12 +467,19 @@ fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     } else {
         latdyn::joint::State::new(&m)
     };
-    let md = latdyn::solver::modes::modes(&m, &state)?;
+    let md = latdyn::solver::modes::lowest_modes(&m, &state, args.count)
+        .with_context(|| format!("{}: modes", m.path))?;
     let count = args.count.min(md.frequencies_hz.len());
     let f = &md.frequencies_hz[..count];
+    for w in &md.warnings {
+        eprintln!("warning: {w}");
+    }
     if args.model.json {
         let mut v = serde_json::json!({
             "frequencies_hz": f,
+            "zero_frequency": &md.zero_frequency[..count],
+            "error_estimates": &md.error_estimates[..count],
+            "warnings": md.warnings,
             "about": if preload { "static" } else { "reference" },
             "free_dofs": m.n_eq,
         });
@@ -505,7 +512,12 @@ fn modes(args: &ModesArgs) -> anyhow::Result<()> {
             m.n_eq
         );
         for (k, x) in f.iter().enumerate() {
-            s += &format!("  {:>3}  {:>14.6} Hz\n", k + 1, x);
+            let tag = if md.zero_frequency[k] {
+                "  (zero frequency: rigid-body or mechanism motion)"
+            } else {
+                ""
+            };
+            s += &format!("  {:>3}  {:>14.6} Hz{tag}\n", k + 1, x);
         }
         emit(&s)
     }
