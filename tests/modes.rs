@@ -80,3 +80,275 @@ fn free_free_frequencies_converge_at_fourth_order_to_beta_l_closed_form() {
         &[4.7300407449, 7.8532046241, 10.9956078380, 14.1371654913],
     );
 }
+
+// ---------------------------------------------------------------------------------------
+// Sections without rotary inertia, preloads, shipped models (issue 15)
+// ---------------------------------------------------------------------------------------
+
+use std::process::Command;
+
+fn latdyn(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run latdyn")
+}
+
+/// `latdyn modes ARGS --json`, parsed; panics with stderr on failure.
+fn modes_json(args: &[&str]) -> serde_json::Value {
+    let mut a = vec!["modes"];
+    a.extend_from_slice(args);
+    a.push("--json");
+    let out = latdyn(&a);
+    assert!(
+        out.status.success(),
+        "latdyn {a:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is JSON")
+}
+
+fn freqs(v: &serde_json::Value) -> Vec<f64> {
+    v["frequencies_hz"]
+        .as_array()
+        .expect("frequencies")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .collect()
+}
+
+fn flags(v: &serde_json::Value, key: &str, n: usize) -> Vec<bool> {
+    match v[key].as_array() {
+        Some(a) => a.iter().map(|x| x.as_bool().unwrap_or(false)).collect(),
+        None => vec![false; n],
+    }
+}
+
+/// Unloaded 45° bend (no rotary inertia, P = 0, about the reference): the values the
+/// issue quotes, 0.0835, 0.0840, 0.483 Hz, and the same model given a small rotary
+/// inertia (the old code's only correct path), which moves the frequencies by O(rhoI/rhoA
+/// / h²) ≈ 1e-6 relative.
+#[test]
+fn bend45_preloaded_without_rotary_inertia_matches_unloaded_and_rotary_inertia_reference() {
+    let loaded = freqs(&modes_json(&[
+        "models/bend45.toml",
+        "--set",
+        "P=1e-3",
+        "--count",
+        "4",
+    ]));
+    let unloaded = freqs(&modes_json(&[
+        "models/bend45.toml",
+        "--set",
+        "P=0",
+        "--about",
+        "reference",
+        "--count",
+        "4",
+    ]));
+    // a rotary-inertia copy of the model, written next to the target dir
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/bend45.toml"),
+    )
+    .unwrap();
+    let text = text.replace("rhoA = \"rhoA\"", "rhoA = \"rhoA\"\nrhoIy = 1e-6\nrhoIz = 1e-6");
+    assert!(text.contains("rhoIy"), "section edit applied");
+    let dir = std::env::temp_dir().join(format!("latdyn_modes_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bend45_rotary.toml");
+    std::fs::write(&path, text).unwrap();
+    let rotary = freqs(&modes_json(&[
+        path.to_str().unwrap(),
+        "--set",
+        "P=1e-3",
+        "--count",
+        "4",
+    ]));
+    // the issue's values and half a unit of their last digit
+    let issue = [(0.0835, 5e-5), (0.0840, 5e-5), (0.483, 5e-4)];
+    for k in 0..3 {
+        eprintln!(
+            "bend45 mode {}: P=1e-3 {:.6} Hz, unloaded {:.6} Hz, rotary inertia {:.6} Hz",
+            k + 1,
+            loaded[k],
+            unloaded[k],
+            rotary[k]
+        );
+        assert!(loaded[k] > 0.0, "positive: {loaded:?}");
+        // P = 1e-3 against E I = 8.3e5: the preload moves the frequencies by ~1e-9
+        assert!(rel(loaded[k], unloaded[k]) < 1e-6, "{loaded:?} vs {unloaded:?}");
+        assert!(rel(loaded[k], rotary[k]) < 1e-4, "{loaded:?} vs {rotary:?}");
+        assert!(
+            (loaded[k] - issue[k].0).abs() <= issue[k].1,
+            "{loaded:?} vs {issue:?}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Both shipped failures of the issue ("matrix is not positive definite") now solve: the
+/// loaded 45° bend (P = 600, large rotations) and the cantilever under P = 1, whose
+/// preload moves the closed-form βL frequencies only at O((PL²/EI)²) = 1e-4.
+#[test]
+fn preloaded_models_without_rotary_inertia_give_positive_frequencies() {
+    let bend = freqs(&modes_json(&["models/bend45.toml", "--count", "6"]));
+    assert!(bend.iter().all(|f| *f > 0.0), "bend45 P=600: {bend:?}");
+    let cant = freqs(&modes_json(&[
+        "models/cantilever.toml",
+        "--set",
+        "P=1",
+        "--count",
+        "4",
+    ]));
+    // EI = 100, rhoA = 1, L = 1, 8 elements: first bending 1.8751² √100 / 2π = 5.5959 Hz
+    let f1 = 1.8751040687f64.powi(2) * 10.0 / (2.0 * std::f64::consts::PI);
+    for f in &cant[..2] {
+        assert!(rel(*f, f1) < 1e-4, "cantilever P=1: {cant:?} vs {f1}");
+    }
+}
+
+/// Shapes stay mass-normalised through the condensation and refinement: with `--shapes`,
+/// φᵀ M φ = 1 is checked through the library on the same state (M from `matrices`).
+#[test]
+fn refined_shapes_are_mass_normalised_and_m_orthogonal() {
+    let m = common::shipped("bend45.toml", &[("P", 1e-3)]);
+    let st = latdyn::solver::solve_statics(&m).unwrap().state;
+    let md = modes(&m, &st).unwrap();
+    let (_, mm) = latdyn::solver::modes::matrices(&m, &st);
+    let n = m.n_eq;
+    for a in 0..4 {
+        for b in 0..4 {
+            let mut acc = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    acc += md.shapes[a][i] * mm[i * n + j] * md.shapes[b][j];
+                }
+            }
+            let want = if a == b { 1.0 } else { 0.0 };
+            // MGS twice in the M inner product: round-off level
+            assert!((acc - want).abs() < 1e-10, "φ{a}ᵀMφ{b} = {acc}");
+        }
+    }
+    // and the CLI emits the shapes
+    let v = modes_json(&["models/bend45.toml", "--set", "P=1e-3", "--count", "2", "--shapes"]);
+    assert_eq!(v["shapes"].as_array().unwrap().len(), 2);
+}
+
+/// A model with no mass has no natural frequencies: an error (exit 2), not `[]`.
+#[test]
+fn massless_model_modes_is_an_error() {
+    let out = latdyn(&["modes", "models/cantilever.toml", "--set", "rhoA=0"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no mass"), "{err}");
+}
+
+/// A free-free beam without rotary inertia: the rigid twist has neither mass nor
+/// stiffness (left out), the five other rigid-body modes are flagged zero-frequency and
+/// reported as exactly 0, the elastic ones follow.
+#[test]
+fn free_beam_rigid_modes_are_zero_and_flagged() {
+    let m = straight_beam("free", 8, PROPS, [0.0; 3], [0.0; 3], "");
+    let md = modes(&m, &State::new(&m)).unwrap();
+    let zeros = md.zero_frequency.iter().filter(|z| **z).count();
+    assert_eq!(zeros, 5, "{:?} {:?}", md.frequencies_hz, md.zero_frequency);
+    for (f, z) in md.frequencies_hz.iter().zip(&md.zero_frequency) {
+        if *z {
+            assert_eq!(*f, 0.0);
+        } else {
+            assert!(*f > 1.0, "{:?}", md.frequencies_hz);
+        }
+    }
+}
+
+/// Load parameters set to 0 for the unloaded runs; the elements parameter and its
+/// coarsest value (Mini-Mast from 2: its 16-element mesh is a 1700-dof dense problem).
+const SHIPPED: [(&str, &[&str], &str, usize); 8] = [
+    ("bend45.toml", &["P=0"], "elements", 8),
+    ("cantilever.toml", &["P=0", "M=0"], "elements", 8),
+    ("flapping_blade.toml", &["omega=0"], "elements", 10),
+    ("fourbar.toml", &[], "elements", 4),
+    ("minimast_bay.toml", &[], "elements", 2),
+    ("pendulum.toml", &["g=0"], "", 0),
+    ("rotating_cantilever.toml", &["omega=0", "disturbance=0"], "elements", 10),
+    ("spinup_beam.toml", &["ws=0"], "elements", 10),
+];
+
+/// Every shipped model, with its default parameters and unloaded: positive frequencies
+/// (zero-frequency modes only where flagged as rigid-body/mechanism motions) that
+/// converge under mesh refinement (elements doubled twice): the change from the middle
+/// to the finest mesh is below 1 % and below the change from the coarsest to the middle
+/// (observed order in the message). The four-bar under gravity is an inverted mechanism
+/// whose static equilibrium under the default loads is not solved (see the statics
+/// diagnosis); it is covered about its reference configuration.
+#[test]
+fn every_shipped_model_loaded_and_unloaded_has_positive_converging_frequencies() {
+    for (file, unload, elements, e0) in SHIPPED {
+        for loaded in [true, false] {
+            let path = format!("models/{file}");
+            let mut base: Vec<String> = vec![path.clone(), "--count".into(), "4".into()];
+            if !loaded {
+                for u in unload {
+                    base.push("--set".into());
+                    base.push(u.to_string());
+                }
+                base.push("--about".into());
+                base.push("reference".into());
+            } else if file == "fourbar.toml" {
+                base.push("--about".into());
+                base.push("reference".into());
+            }
+            let meshes: Vec<usize> = if elements.is_empty() {
+                vec![0]
+            } else {
+                vec![e0, 2 * e0, 4 * e0]
+            };
+            let mut runs = Vec::new();
+            for ne in &meshes {
+                let mut a = base.clone();
+                if !elements.is_empty() {
+                    a.push("--set".into());
+                    a.push(format!("{elements}={ne}"));
+                }
+                let args: Vec<&str> = a.iter().map(|s| s.as_str()).collect();
+                let v = modes_json(&args);
+                let f = freqs(&v);
+                let z = flags(&v, "zero_frequency", f.len());
+                assert!(!f.is_empty(), "{file} {args:?}: no modes");
+                for (k, (x, zk)) in f.iter().zip(&z).enumerate() {
+                    assert!(x.is_finite(), "{file} {args:?}: {f:?}");
+                    assert!(
+                        *x > 0.0 || (*zk && *x == 0.0),
+                        "{file} {args:?}: mode {} = {x} Hz (flags {z:?})",
+                        k + 1
+                    );
+                }
+                runs.push((f, z));
+            }
+            if runs.len() < 3 {
+                continue;
+            }
+            let nk = runs.iter().map(|r| r.0.len()).min().unwrap();
+            for k in 0..nk {
+                if runs.iter().any(|r| r.1[k]) {
+                    continue;
+                }
+                let (f1, f2, f3) = (runs[0].0[k], runs[1].0[k], runs[2].0[k]);
+                let (d12, d23) = ((f1 - f2).abs(), (f2 - f3).abs());
+                let order = (d12 / d23).log2();
+                let msg = format!(
+                    "{file} loaded={loaded} mode {}: {f1:.8} → {f2:.8} → {f3:.8} Hz, observed \
+                     order {order:.2}",
+                    k + 1
+                );
+                eprintln!("{msg}");
+                assert!(d23 <= 1e-2 * f3, "{msg}");
+                // converging: the second change smaller than the first, or both below 1e-6
+                // relative, where a mesh-independent mode (the articulated blade's rigid
+                // flap) only shows the steady rotating state's solver tolerance
+                assert!(d23 < d12 || d23 <= 1e-6 * f3, "{msg}");
+            }
+        }
+    }
+}

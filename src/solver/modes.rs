@@ -78,7 +78,8 @@ pub const MASS_NULL_REL: f64 = 1e-12;
 pub const STIFF_NULL_REL: f64 = 1e-10;
 /// A mode is zero-frequency when |ω²| is within its error estimate and that estimate is
 /// below this fraction of the largest ω² of the refined subspace (rigid-body modes of a
-/// free beam: estimates ~1e-12 of it); a larger estimate means the mode is unresolved.
+/// free beam: estimates ~1e-12 of it; the scale is at least max|K|/max eig(M)); a larger
+/// estimate means the mode is unresolved.
 pub const ZERO_SCALE_REL: f64 = 1e-6;
 /// Relative round-off assumed in each entry of the assembled K and M: each is a sum of
 /// element contributions tens of operations deep.
@@ -406,10 +407,14 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
     // the largest eigenvalue of the refined subspace sets the scale: an ω² within its
     // error of 0 is a zero-frequency mode only if that error is itself negligible on
     // this scale; otherwise the mode is unresolved (warned, frequency as computed)
-    let lam_scale = out.iter().fold(0.0f64, |a, r| a.max(r.0.abs()));
+    // (and K = 0 altogether: every mode is a free motion)
+    let k_max = k.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    let lam_scale = out
+        .iter()
+        .fold(k_max / mu_max, |a, r| a.max(r.0.abs()));
     out.truncate(count);
     for (idx, (lam, mut z, err)) in out.into_iter().enumerate() {
-        let zero = lam.abs() <= err && err <= ZERO_SCALE_REL * lam_scale;
+        let zero = k_max == 0.0 || (lam.abs() <= err && err <= ZERO_SCALE_REL * lam_scale);
         let f = if zero {
             0.0
         } else {

@@ -8,12 +8,32 @@ use crate::model::Model;
 
 #[derive(Debug, thiserror::Error)]
 pub enum StaticsError {
-    #[error("statics did not converge: load factor stuck at {lambda:.6} (worst residual {residual:.3e} at dof `{dof}`)")]
+    #[error(
+        "statics did not converge: stalled at load factor {lambda:.6} after {iterations} \
+         Newton iterations in {steps} load steps (worst residual {residual:.3e} at dof \
+         `{dof}`, [solver] tol = {tol:e}; a tolerance below the model's round-off cannot be \
+         reached)"
+    )]
     NoConvergence {
         lambda: f64,
         residual: f64,
         dof: String,
+        iterations: usize,
+        steps: usize,
+        tol: f64,
     },
+    #[error(
+        "statics: the stiffness is singular at the reference state (a mechanism or a body \
+         that is not held), Newton cannot start: free motion{plural} (coordinate: share) {motions}. Hold the model \
+         (supports, drivers, a hinge stiffness) or give it stiffness in these directions"
+    )]
+    FreeMotion { motions: String, plural: &'static str },
+    #[error(
+        "statics: limit point at load factor {lambda:.6} (the loads reached are {lambda:.6} × \
+         the model's loads): the tangent stiffness there {what}, so the structure cannot \
+         carry more load along this path (buckling or snap-through)"
+    )]
+    LimitPoint { lambda: f64, what: String },
     #[error("linear solver: {0}")]
     Linear(#[from] crate::linalg::LinalgError),
 }
@@ -41,19 +61,28 @@ pub fn newton(
     let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
     for it in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
-        let info = match sys.evaluate(model, asm, s, c, true) {
-            Ok(i) => i,
-            Err(_) => return Ok(None),
+        let (info, factored) = match sys.evaluate(model, asm, s, c, true) {
+            Ok(i) => (Some(i), true),
+            Err(_) => (None, false),
         };
         let res = norm_inf(&sys.r);
         if !res.is_finite() {
             return Ok(None);
         }
-        if conv.converged(res, info.force_scale) {
+        // a singular Jacobian does not matter once the residual is converged (a stiff
+        // model at zero load, EA = 1e18: the residual is exactly 0)
+        let scale = info.map_or(0.0, |i| i.force_scale);
+        if conv.converged(res, scale) {
             return Ok(asm.deformation_in_range(model, s).then_some(it));
         }
-        if sys.solve_neg_residual(&mut dx).is_err() {
+        if !factored || sys.solve_neg_residual(&mut dx).is_err() {
             return Ok(None);
+        }
+        // a correction below the coordinates' round-off: no representable state is closer
+        // to equilibrium (the stress-free reference of a curved mesh at zero load, whose
+        // residual is round-off of the element forces with no force scale to compare to)
+        if norm_inf(&dx) <= Convergence::ROUNDOFF_CORRECTION * f64::EPSILON * coord_scale(model) {
+            return Ok(asm.deformation_in_range(model, s).then_some(it));
         }
         asm.limit_rotation_step(&mut dx, MAX_NEWTON_ANGLE);
         joint::apply_increment(model, s, &dx);
@@ -61,6 +90,20 @@ pub fn newton(
     joint::update_kinematics(model, s);
     Ok(None)
 }
+
+/// Largest distance of a node from the first: the size of the model's coordinates.
+fn coord_scale(model: &Model) -> f64 {
+    model.x0.first().map_or(1.0, |o| {
+        model.x0.iter().fold(1.0f64, |m, x| {
+            m.max(crate::math::norm(crate::math::sub(*x, *o)))
+        })
+    })
+}
+
+/// Most load steps (accepted + rejected) of one solve: 20 halvings below the smallest
+/// step are already a stall; this bounds a solve that creeps at tiny steps (each
+/// converging, none growing) instead of letting it run for 1e7 steps.
+pub const MAX_LOAD_STEPS: usize = 10_000;
 
 /// Solve for static equilibrium under the full loads, starting from `s`.
 pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError> {
@@ -73,7 +116,15 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
         newton_iterations: 0,
         rejected_steps: 0,
     };
+    // zero loads (every load and gravity zero or scaled to zero): the reference is the
+    // equilibrium, one Newton solve at full load confirms it (0 iterations when it is)
+    if loads_vanish(model, &asm, s) {
+        dl = 1.0;
+    }
     while lambda < 1.0 {
+        if rep.load_steps + rep.rejected_steps >= MAX_LOAD_STEPS {
+            return Err(stall(model, &asm, &mut sys, s, lambda, &rep));
+        }
         let target = (lambda + dl).min(1.0);
         let saved = s.clone();
         match newton(model, &asm, &mut sys, s, target)? {
@@ -91,19 +142,169 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
                 dl *= 0.5;
                 if dl < 1e-7 {
                     joint::update_kinematics(model, s);
-                    let _ = sys.evaluate(model, &asm, s, Coeffs::statics(target), false);
-                    let (worst, val) = worst_dof(model, &sys.r);
-                    return Err(StaticsError::NoConvergence {
-                        lambda,
-                        residual: val,
-                        dof: worst,
-                    });
+                    if let Some(e) = diagnose(model, s, lambda) {
+                        return Err(e);
+                    }
+                    return Err(stall(model, &asm, &mut sys, s, lambda, &rep));
                 }
             }
         }
     }
     joint::update_kinematics(model, s);
     Ok(rep)
+}
+
+/// Whether the applied loads are all zero: the residual at full load equals the one at
+/// zero load bit for bit.
+fn loads_vanish(model: &Model, asm: &Assembler, s: &State) -> bool {
+    let mut s0 = s.clone();
+    joint::update_kinematics(model, &mut s0);
+    let n = model.dofs.len();
+    let (mut g0, mut g1) = (vec![0.0; n], vec![0.0; n]);
+    asm.evaluate(model, &s0, Coeffs::statics(0.0), &mut g0, None);
+    asm.evaluate(model, &s0, Coeffs::statics(1.0), &mut g1, None);
+    g0 == g1
+}
+
+fn stall(
+    model: &Model,
+    asm: &Assembler,
+    sys: &mut NewtonSystem,
+    s: &mut State,
+    lambda: f64,
+    rep: &StaticsReport,
+) -> StaticsError {
+    joint::update_kinematics(model, s);
+    let target = lambda.max(f64::MIN_POSITIVE);
+    let _ = sys.evaluate(model, asm, s, Coeffs::statics(target), false);
+    let (worst, val) = worst_dof(model, &sys.r);
+    StaticsError::NoConvergence {
+        lambda,
+        residual: val,
+        dof: worst,
+        iterations: rep.newton_iterations,
+        steps: rep.load_steps + rep.rejected_steps,
+        tol: model.solver.tol,
+    }
+}
+
+/// Dense tangent at `s` and load factor `lambda`, Jacobi-scaled: D K D with
+/// D = diag(1/√|K_ii|), so that a graded model (EA 1e16 times the bending stiffness) does
+/// not hide its soft directions below a relative threshold. Returns (scaled K, D).
+fn scaled_tangent(model: &Model, s: &State, lambda: f64) -> (Vec<f64>, Vec<f64>) {
+    let asm = Assembler::new(model);
+    let n = asm.n_eq;
+    let mut gen = vec![0.0; model.dofs.len()];
+    let mut k = vec![0.0; n * n];
+    asm.evaluate(
+        model,
+        s,
+        Coeffs::statics(lambda),
+        &mut gen,
+        Some(&mut crate::assembly::DenseSink { n, a: &mut k }),
+    );
+    let d: Vec<f64> = (0..n)
+        .map(|i| {
+            let a = k[i * n + i].abs();
+            if a > 0.0 && a.is_finite() {
+                1.0 / a.sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    for i in 0..n {
+        for j in 0..n {
+            k[i * n + j] *= d[i] * d[j];
+        }
+    }
+    (k, d)
+}
+
+/// Eigenvalues of the scaled tangent at or below this (its diagonal is 1, so its largest
+/// eigenvalue is O(1)..O(coordinates per node)) are free motions: 1e-8 is far above the
+/// round-off of a stiffness assembled from terms of relative error ~1e-14, and far below
+/// any real stiffness ratio after Jacobi scaling.
+const FREE_MOTION_TOL: f64 = 1e-8;
+
+/// Why statics failed: a free motion at the reference (λ = 0), or a limit point (the
+/// tangent singular or indefinite at the last converged state). None if neither.
+fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
+    let n = model.n_eq;
+    // dense diagnosis only up to a size whose eigendecomposition takes seconds
+    if n == 0 || n > 3000 {
+        return None;
+    }
+    let (k, d) = scaled_tangent(model, s, lambda);
+    let (ev, vecs) = crate::linalg::sym_eig(&k, n).ok()?;
+    let scale = ev.iter().fold(0.0f64, |a, b| a.max(b.abs())).max(1e-300);
+    let free: Vec<usize> = (0..n)
+        .filter(|&j| ev[j].abs() <= FREE_MOTION_TOL * scale)
+        .collect();
+    if lambda == 0.0 {
+        if free.is_empty() {
+            return None;
+        }
+        let mut parts = Vec::new();
+        for (c, &j) in free.iter().take(6).enumerate() {
+            // back to coordinates: x = D w
+            let x: Vec<f64> = (0..n).map(|i| d[i] * vecs[j * n + i]).collect();
+            parts.push(format!("{}: {}", c + 1, describe(model, &x)));
+        }
+        if free.len() > 6 {
+            parts.push(format!("and {} more", free.len() - 6));
+        }
+        return Some(StaticsError::FreeMotion {
+            motions: parts.join("; "),
+            plural: if free.len() > 1 { "s" } else { "" },
+        });
+    }
+    let min = ev.first().copied().unwrap_or(0.0);
+    if min < -FREE_MOTION_TOL * scale {
+        Some(StaticsError::LimitPoint {
+            lambda,
+            what: format!(
+                "has a negative eigenvalue (scaled {min:.2e}): the equilibrium path is past \
+                 a limit or bifurcation point"
+            ),
+        })
+    } else if !free.is_empty() || min < 1e-4 * scale {
+        Some(StaticsError::LimitPoint {
+            lambda,
+            what: format!("is (nearly) singular (smallest scaled eigenvalue {min:.2e})"),
+        })
+    } else {
+        None
+    }
+}
+
+/// The largest components of a free motion, by coordinate name, as shares of the largest.
+fn describe(model: &Model, x: &[f64]) -> String {
+    let big = x.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    let mut comps: Vec<(usize, f64)> = x
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.abs() >= 0.1 * big)
+        .map(|(i, v)| (i, v / big))
+        .collect();
+    comps.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    let mut names = vec![String::new(); model.n_eq];
+    for d in &model.dofs {
+        if let Some(e) = d.eq {
+            names[e] = d.name.clone();
+        }
+    }
+    let shown: Vec<String> = comps
+        .iter()
+        .take(8)
+        .map(|(i, v)| format!("{} {v:+.2}", names[*i]))
+        .collect();
+    let more = if comps.len() > 8 {
+        format!(" (+{} smaller)", comps.len() - 8)
+    } else {
+        String::new()
+    };
+    format!("[{}{more}]", shown.join(", "))
 }
 
 /// Name and magnitude of the equation with the largest residual.
