@@ -166,6 +166,39 @@ pub fn apply_drivers(model: &Model, s: &mut State, t: f64) {
     }
 }
 
+/// The first drive or load time factor that is not finite at time `t` (value, rate or
+/// acceleration of a drive; value of a load's factor), described by its field and text.
+/// A NaN or infinity there is the model's input, not a solver failure, and must be named
+/// as such (it would otherwise show up as Newton failing with the step cut to dt_min).
+pub fn non_finite_input(model: &Model, t: f64) -> Option<String> {
+    for d in &model.dofs {
+        if let DofMode::Driven(f) = &d.mode {
+            let v = f.eval(t);
+            if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+                let what = ["value", "rate (d/dt)", "acceleration (d²/dt²)"][k];
+                return Some(format!(
+                    "the drive of `{}` = `{}` has a non-finite {what} ({})",
+                    d.name, f.source, v[k]
+                ));
+            }
+        }
+    }
+    for (i, l) in model.loads.iter().enumerate() {
+        if let Some(f) = &l.scale {
+            let v = f.eval(t)[0];
+            if !v.is_finite() {
+                let node = model.node_names.get(l.node).map_or("?", |s| s.as_str());
+                return Some(format!(
+                    "the time factor of load {} (node `{node}`) `scale = {}` is {v}",
+                    i + 1,
+                    f.source
+                ));
+            }
+        }
+    }
+    None
+}
+
 /// Apply a solver increment `dx` (indexed by equation number) to the coordinates:
 /// scalars add, spins update multiplicatively R ← exp(skew(Δ)) R.
 pub fn apply_increment(model: &Model, s: &mut State, dx: &[f64]) {

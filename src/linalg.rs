@@ -943,7 +943,10 @@ impl DenseLu {
         }
         let mut acc = 0.0;
         for i in 0..n {
-            let lrow: f64 = (0..i).map(|j| self.lu[i * n + j].abs() * ux[j]).sum::<f64>() + ux[i];
+            let lrow: f64 = (0..i)
+                .map(|j| self.lu[i * n + j].abs() * ux[j])
+                .sum::<f64>()
+                + ux[i];
             acc += x[self.perm[i]].abs() * lrow;
         }
         acc

@@ -152,7 +152,10 @@ fn bend45_preloaded_without_rotary_inertia_matches_unloaded_and_rotary_inertia_r
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/bend45.toml"),
     )
     .unwrap();
-    let text = text.replace("rhoA = \"rhoA\"", "rhoA = \"rhoA\"\nrhoIy = 1e-6\nrhoIz = 1e-6");
+    let text = text.replace(
+        "rhoA = \"rhoA\"",
+        "rhoA = \"rhoA\"\nrhoIy = 1e-6\nrhoIz = 1e-6",
+    );
     assert!(text.contains("rhoIy"), "section edit applied");
     let dir = std::env::temp_dir().join(format!("latdyn_modes_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -177,7 +180,10 @@ fn bend45_preloaded_without_rotary_inertia_matches_unloaded_and_rotary_inertia_r
         );
         assert!(loaded[k] > 0.0, "positive: {loaded:?}");
         // P = 1e-3 against E I = 8.3e5: the preload moves the frequencies by ~1e-9
-        assert!(rel(loaded[k], unloaded[k]) < 1e-6, "{loaded:?} vs {unloaded:?}");
+        assert!(
+            rel(loaded[k], unloaded[k]) < 1e-6,
+            "{loaded:?} vs {unloaded:?}"
+        );
         assert!(rel(loaded[k], rotary[k]) < 1e-4, "{loaded:?} vs {rotary:?}");
         assert!(
             (loaded[k] - issue[k].0).abs() <= issue[k].1,
@@ -231,7 +237,14 @@ fn refined_shapes_are_mass_normalised_and_m_orthogonal() {
         }
     }
     // and the CLI emits the shapes
-    let v = modes_json(&["models/bend45.toml", "--set", "P=1e-3", "--count", "2", "--shapes"]);
+    let v = modes_json(&[
+        "models/bend45.toml",
+        "--set",
+        "P=1e-3",
+        "--count",
+        "2",
+        "--shapes",
+    ]);
     assert_eq!(v["shapes"].as_array().unwrap().len(), 2);
 }
 
@@ -262,6 +275,10 @@ fn free_beam_rigid_modes_are_zero_and_flagged() {
     }
 }
 
+fn v_rot(runs: &[(Vec<f64>, Vec<bool>, bool)]) -> bool {
+    runs.iter().any(|r| r.2)
+}
+
 /// Load parameters set to 0 for the unloaded runs; the elements parameter and its
 /// coarsest value (Mini-Mast from 2: its 16-element mesh is a 1700-dof dense problem).
 const SHIPPED: [(&str, &[&str], &str, usize); 8] = [
@@ -271,7 +288,12 @@ const SHIPPED: [(&str, &[&str], &str, usize); 8] = [
     ("fourbar.toml", &[], "elements", 4),
     ("minimast_bay.toml", &[], "elements", 2),
     ("pendulum.toml", &["g=0"], "", 0),
-    ("rotating_cantilever.toml", &["omega=0", "disturbance=0"], "elements", 10),
+    (
+        "rotating_cantilever.toml",
+        &["omega=0", "disturbance=0"],
+        "elements",
+        10,
+    ),
     ("spinup_beam.toml", &["ws=0"], "elements", 10),
 ];
 
@@ -324,7 +346,7 @@ fn every_shipped_model_loaded_and_unloaded_has_positive_converging_frequencies()
                         k + 1
                     );
                 }
-                runs.push((f, z));
+                runs.push((f, z, v["about"] == "steady_rotation"));
             }
             if runs.len() < 3 {
                 continue;
@@ -344,11 +366,85 @@ fn every_shipped_model_loaded_and_unloaded_has_positive_converging_frequencies()
                 );
                 eprintln!("{msg}");
                 assert!(d23 <= 1e-2 * f3, "{msg}");
-                // converging: the second change smaller than the first, or both below 1e-6
-                // relative, where a mesh-independent mode (the articulated blade's rigid
-                // flap) only shows the steady rotating state's solver tolerance
-                assert!(d23 < d12 || d23 <= 1e-6 * f3, "{msg}");
+                // converging: the second change smaller than the first, or below the
+                // accuracy of the frequency itself: 1e-9 relative for the symmetric
+                // (refined) solver; 1e-5 for the rotating-frame modes (the loaded blade
+                // and rotating cantilever), which come from a general eigensolver of the
+                // gyroscopic state-space matrix without refinement: measured changes of
+                // 2e-6 relative between 20 and 40 elements on a mesh-converged mode
+                let floor = if v_rot(&runs) { 1e-5 } else { 1e-9 };
+                assert!(d23 < d12 || d23 <= floor * f3, "{msg}");
             }
         }
     }
+}
+
+/// Conditioning: a stiff axial direction (EA up to 1e18, 1e16 times the bending stiffness)
+/// does not change the bending frequencies of a straight cantilever at all in exact
+/// arithmetic (axial and bending decouple), so every EA must give the EA = 1e8 values to
+/// within the refinement's accuracy, 1e-9 relative (measured: 4e-16 at EA = 1e18), without
+/// a warning. The old Cholesky-reduction solve gave 7.10 Hz instead of 5.596 at 1e18.
+#[test]
+fn stiff_axial_cantilever_bending_frequencies_are_independent_of_ea() {
+    let get = |ea: &str, about: &str| {
+        let v = modes_json(&[
+            "models/cantilever.toml",
+            "--set",
+            &format!("EA={ea}"),
+            "--about",
+            about,
+            "--count",
+            "4",
+        ]);
+        assert_eq!(v["warnings"].as_array().unwrap().len(), 0, "EA={ea}: {v}");
+        freqs(&v)
+    };
+    for about in ["reference", "static"] {
+        let base = get("1e8", about);
+        for ea in ["1e12", "1e15", "1e18"] {
+            let f = get(ea, about);
+            for k in 0..4 {
+                eprintln!(
+                    "EA={ea} about {about}: mode {} {:.12} vs {:.12}",
+                    k + 1,
+                    f[k],
+                    base[k]
+                );
+                assert!(rel(f[k], base[k]) < 1e-9, "EA={ea}: {f:?} vs {base:?}");
+            }
+        }
+    }
+}
+
+/// A curved beam with EA = 1e18 is ill-conditioned for real (its in-plane bending mode is
+/// sensitive to the round-off of the 1e17 axial entries): the estimate must flag it in
+/// `warnings`, on stderr, and in `error_estimates` (> 1e-6) instead of printing a wrong
+/// number silently (computed 0.0485 Hz where the inextensible value is ≈ 0.084 Hz).
+#[test]
+fn ill_conditioned_curved_beam_frequency_is_warned() {
+    let out = latdyn(&[
+        "modes",
+        "models/bend45.toml",
+        "--set",
+        "A=1e11",
+        "--set",
+        "P=0",
+        "--about",
+        "reference",
+        "--count",
+        "3",
+        "--json",
+    ]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let warnings = v["warnings"].as_array().unwrap();
+    assert!(!warnings.is_empty(), "{v}");
+    let est: Vec<f64> = v["error_estimates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert!(est.iter().any(|e| *e > 1e-6), "{est:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("warning: mode"));
 }

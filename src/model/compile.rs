@@ -212,12 +212,17 @@ impl Compiler<'_> {
 
     fn unit(&self, v: &Spanned<Vector>, field: &str) -> Result<Vec3> {
         let x = self.vec3(v, field)?;
-        let n = norm(x);
-        if n > 0.0 {
-            Ok(scale(x, 1.0 / n))
-        } else {
-            Err(self.err(v.span(), field, "has zero length"))
+        if !x.iter().all(|c| c.is_finite()) {
+            return Err(self.err(v.span(), field, "has a non-finite component"));
         }
+        // scaled by the largest component first: the norm of [1e308, 1e308, 0] overflows
+        // (and of [1e-320, 0, 0] loses digits), which turned such an axis into zero
+        let big = x.iter().fold(0.0f64, |a, c| a.max(c.abs()));
+        if big == 0.0 {
+            return Err(self.err(v.span(), field, "has zero length"));
+        }
+        let y = scale(x, 1.0 / big);
+        Ok(scale(y, 1.0 / norm(y)))
     }
 
     fn required<'s, T>(
@@ -1609,6 +1614,20 @@ impl Compiler<'_> {
         }
         if let Some(v) = &sp.tol {
             s.tol = self.positive(v, &f("tol"))?;
+            // relative to the largest force term: above 1e-2 an unbalanced force of more
+            // than 1 % of it passes (at ≥ 1 the undeformed state "converges" under any
+            // load), so such a value is a mistake, not a choice (no warning channel here)
+            if s.tol > MAX_TOL {
+                return Err(self.err(
+                    v.span(),
+                    f("tol"),
+                    format!(
+                        "must be at most {MAX_TOL:e} (a relative residual; {} would accept \
+                         states out of equilibrium by more than 1 % of the largest force)",
+                        s.tol
+                    ),
+                ));
+            }
         }
         if let Some(v) = &sp.max_iter {
             s.max_iter = self.integer(v, &f("max_iter"), 1)?;
@@ -1648,6 +1667,9 @@ fn rect_torsion(b: f64, h: f64) -> f64 {
     let (a, c) = if b >= h { (b, h) } else { (h, b) };
     a * c.powi(3) * (1.0 / 3.0 - 0.21 * (c / a) * (1.0 - c.powi(4) / (12.0 * a.powi(4))))
 }
+
+/// Largest accepted `[solver] tol` (see the check in the solver table).
+pub const MAX_TOL: f64 = 1e-2;
 
 /// The global axis making the largest angle with `x` (ties: x before y before z).
 fn least_parallel_axis(x: Vec3) -> Vec3 {

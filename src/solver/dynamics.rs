@@ -28,6 +28,8 @@ pub enum DynamicsError {
     },
     #[error("interrupted at t = {t:.6} s")]
     Interrupted { t: f64 },
+    #[error("model input is not finite at t = {t:.6} s: {what}")]
+    NonFiniteInput { what: String, t: f64 },
     #[error("linear solver: {0}")]
     Linear(#[from] crate::linalg::LinalgError),
 }
@@ -36,7 +38,9 @@ impl DynamicsError {
     /// Time of the failure, if the run got going.
     pub fn time(&self) -> f64 {
         match self {
-            DynamicsError::NoConvergence { t, .. } | DynamicsError::Interrupted { t } => *t,
+            DynamicsError::NoConvergence { t, .. }
+            | DynamicsError::Interrupted { t }
+            | DynamicsError::NonFiniteInput { t, .. } => *t,
             DynamicsError::Linear(_) => 0.0,
         }
     }
@@ -421,6 +425,12 @@ impl<'m> Integrator<'m> {
         let dt_nominal = self.model.solver.dt;
         while self.s.t < t_target - 1e-12 * t_target.abs().max(1.0) {
             let h = self.h.min(t_target - self.s.t);
+            if let Some(what) = joint::non_finite_input(self.model, self.s.t + h) {
+                return Err(DynamicsError::NonFiniteInput {
+                    what,
+                    t: self.s.t + h,
+                });
+            }
             self.prev_q.clone_from(&self.s.q);
             match self.try_step(h)? {
                 Some(iters) => {

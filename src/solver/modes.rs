@@ -78,8 +78,9 @@ pub const MASS_NULL_REL: f64 = 1e-12;
 pub const STIFF_NULL_REL: f64 = 1e-10;
 /// A mode is zero-frequency when |ω²| is within its error estimate and that estimate is
 /// below this fraction of the largest ω² of the refined subspace (rigid-body modes of a
-/// free beam: estimates ~1e-12 of it; the scale is at least max|K|/max eig(M)); a larger
-/// estimate means the mode is unresolved.
+/// free beam: estimates ~1e-12 of it); a larger estimate means the mode is unresolved.
+/// (Not max|K|/max eig(M) as the scale: on a graded model that is the axial stiffness,
+/// and an unresolved bending mode would pass as a zero-frequency one.)
 pub const ZERO_SCALE_REL: f64 = 1e-6;
 /// Relative round-off assumed in each entry of the assembled K and M: each is a sum of
 /// element contributions tens of operations deep.
@@ -141,7 +142,11 @@ fn symmetrised(a: &[f64], n: usize) -> Vec<f64> {
 
 fn matvec(a: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
     for i in 0..n {
-        y[i] = a[i * n..(i + 1) * n].iter().zip(x).map(|(p, q)| p * q).sum();
+        y[i] = a[i * n..(i + 1) * n]
+            .iter()
+            .zip(x)
+            .map(|(p, q)| p * q)
+            .sum();
     }
 }
 
@@ -257,9 +262,7 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
             if kc.abs() <= tol_k {
                 let mut z = vec![0.0; n];
                 for (r, &b) in zz.iter().enumerate() {
-                    z.iter_mut()
-                        .zip(vcol(b))
-                        .for_each(|(a, q)| *a += wc[r] * q);
+                    z.iter_mut().zip(vcol(b)).for_each(|(a, q)| *a += wc[r] * q);
                 }
                 null_free.push(z);
                 continue;
@@ -307,7 +310,11 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
 
     // 3. shift-invert subspace iteration in the original coordinates
     let kdiag_max = (0..n).fold(0.0f64, |a, i| a.max(k[i * n + i].abs()));
-    let rho = if kzz_max > 0.0 { kzz_max } else { kdiag_max.max(1.0) };
+    let rho = if kzz_max > 0.0 {
+        kzz_max
+    } else {
+        kdiag_max.max(1.0)
+    };
     let mut kp = k.clone();
     for z in &null_free {
         for i in 0..n {
@@ -409,9 +416,7 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
     // this scale; otherwise the mode is unresolved (warned, frequency as computed)
     // (and K = 0 altogether: every mode is a free motion)
     let k_max = k.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-    let lam_scale = out
-        .iter()
-        .fold(k_max / mu_max, |a, r| a.max(r.0.abs()));
+    let lam_scale = out.iter().fold(0.0f64, |a, r| a.max(r.0.abs()));
     out.truncate(count);
     for (idx, (lam, mut z, err)) in out.into_iter().enumerate() {
         let zero = k_max == 0.0 || (lam.abs() <= err && err <= ZERO_SCALE_REL * lam_scale);
@@ -433,7 +438,9 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
                 idx + 1
             ));
         }
-        let big = z.iter().fold(0.0f64, |a, &b| if b.abs() > a.abs() { b } else { a });
+        let big = z
+            .iter()
+            .fold(0.0f64, |a, &b| if b.abs() > a.abs() { b } else { a });
         if big < 0.0 {
             z.iter_mut().for_each(|a| *a = -*a);
         }

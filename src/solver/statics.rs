@@ -27,7 +27,10 @@ pub enum StaticsError {
          that is not held), Newton cannot start: free motion{plural} (coordinate: share) {motions}. Hold the model \
          (supports, drivers, a hinge stiffness) or give it stiffness in these directions"
     )]
-    FreeMotion { motions: String, plural: &'static str },
+    FreeMotion {
+        motions: String,
+        plural: &'static str,
+    },
     #[error(
         "statics: limit point at load factor {lambda:.6} (the loads reached are {lambda:.6} × \
          the model's loads): the tangent stiffness there {what}, so the structure cannot \
@@ -48,6 +51,12 @@ pub struct StaticsReport {
 /// Largest angle change of one Newton iteration [rad].
 pub const MAX_NEWTON_ANGLE: f64 = 0.5;
 
+/// Newton corrections after the first adding up to more than this multiple of the first
+/// (the tangent prediction) mean a jump to another equilibrium branch. Quadratic
+/// convergence from a good prediction travels less than the prediction; large-rotation
+/// steps that need more travel are simply halved.
+pub const BRANCH_JUMP: f64 = 10.0;
+
 /// Newton at a fixed load factor; returns iterations used, or None if it diverged.
 pub fn newton(
     model: &Model,
@@ -59,6 +68,8 @@ pub fn newton(
     let c = Coeffs::statics(lambda);
     let mut dx = vec![0.0; asm.n_eq];
     let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
+    // first (tangent) prediction and the distance Newton travels after it
+    let (mut first, mut travel) = (0.0f64, 0.0f64);
     for it in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
         let (info, factored) = match sys.evaluate(model, asm, s, c, true) {
@@ -85,6 +96,19 @@ pub fn newton(
             return Ok(asm.deformation_in_range(model, s).then_some(it));
         }
         asm.limit_rotation_step(&mut dx, MAX_NEWTON_ANGLE);
+        let step = norm_inf(&dx);
+        if it == 0 {
+            first = step;
+        } else {
+            travel += step;
+            // Newton has gone far beyond the tangent prediction: past a limit point it
+            // jumps to another equilibrium branch (a shallow arch snapping through under
+            // load control), which would be reported as if the path were continuous;
+            // reject, the smaller step either follows the path or ends at the limit
+            if travel > BRANCH_JUMP * first {
+                return Ok(None);
+            }
+        }
         joint::apply_increment(model, s, &dx);
     }
     joint::update_kinematics(model, s);
@@ -227,6 +251,12 @@ fn scaled_tangent(model: &Model, s: &State, lambda: f64) -> (Vec<f64>, Vec<f64>)
 /// any real stiffness ratio after Jacobi scaling.
 const FREE_MOTION_TOL: f64 = 1e-8;
 
+/// The tangent at the last converged state is at a limit point when its smallest scaled
+/// eigenvalue fell below this fraction of the unloaded one: step halving stops within 1e-7
+/// of the load factor of a fold, where the eigenvalue ∝ √(λ_c − λ) is ~1e-3 of its
+/// unloaded size.
+const LIMIT_SOFTENING: f64 = 0.05;
+
 /// Why statics failed: a free motion at the reference (λ = 0), or a limit point (the
 /// tangent singular or indefinite at the last converged state). None if neither.
 fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
@@ -260,6 +290,15 @@ fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
         });
     }
     let min = ev.first().copied().unwrap_or(0.0);
+    // the reference state's smallest scaled eigenvalue: the stiffness before the loads
+    let s_ref = State::new(model);
+    let (k0, _) = scaled_tangent(model, &s_ref, 0.0);
+    let min0 = crate::linalg::sym_eig(&k0, n)
+        .ok()?
+        .0
+        .first()
+        .copied()
+        .unwrap_or(0.0);
     if min < -FREE_MOTION_TOL * scale {
         Some(StaticsError::LimitPoint {
             lambda,
@@ -268,10 +307,13 @@ fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
                  a limit or bifurcation point"
             ),
         })
-    } else if !free.is_empty() || min < 1e-4 * scale {
+    } else if !free.is_empty() || (min0 > 0.0 && min < LIMIT_SOFTENING * min0) {
         Some(StaticsError::LimitPoint {
             lambda,
-            what: format!("is (nearly) singular (smallest scaled eigenvalue {min:.2e})"),
+            what: format!(
+                "is (nearly) singular: its smallest scaled eigenvalue fell to {min:.2e} from \
+                 {min0:.2e} unloaded"
+            ),
         })
     } else {
         None

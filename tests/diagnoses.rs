@@ -1,0 +1,308 @@
+//! Diagnoses instead of symptoms (issue 15): singular statics names the free motion, a
+//! limit point says so with the load reached, zero load succeeds at once, an unreachable
+//! tolerance stops; a drive or load that turns NaN names its expression and the time.
+
+mod common;
+use common::*;
+use latdyn::solver::{solve_statics, statics::StaticsError};
+use std::process::{Command, Output};
+
+fn latdyn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run latdyn")
+}
+
+const PROPS: &str = r#"EA = 1.0e7
+EIy = 100.0
+EIz = 100.0
+GJ = 80.0
+rhoA = 1.0"#;
+
+fn free_motion(e: StaticsError) -> String {
+    match e {
+        StaticsError::FreeMotion { motions, .. } => motions,
+        other => panic!("expected a free motion, got: {other}"),
+    }
+}
+
+/// A beam with no support: six rigid-body motions, named by coordinate (was "load
+/// factor stuck at 0.000000 ... residual 0.000e0").
+#[test]
+fn free_floating_statics_names_six_rigid_motions() {
+    let m = straight_beam("free", 4, PROPS, [0.0, 0.0, 1.0], [0.0; 3], "");
+    let e = solve_statics(&m)
+        .err()
+        .expect("a free body has no static equilibrium");
+    let msg = e.to_string();
+    let motions = free_motion(e);
+    eprintln!("{msg}");
+    assert!(msg.contains("free motions"), "{msg}");
+    assert!(
+        motions.contains("6: [") && !motions.contains("7: ["),
+        "{motions}"
+    );
+}
+
+/// A pinned cantilever (translations held, rotations free at the root) swings rigidly
+/// about the pin: three free motions, one of them the pure twist about the beam axis
+/// (every node's `rx` and nothing else).
+#[test]
+fn pinned_cantilever_statics_names_the_three_rotations_about_the_pin() {
+    let m = straight_beam("pinned", 4, PROPS, [0.0, 0.0, 1.0], [0.0; 3], "");
+    let motions = free_motion(solve_statics(&m).err().expect("singular"));
+    eprintln!("{motions}");
+    assert!(
+        motions.contains("3: [") && !motions.contains("4: ["),
+        "{motions}"
+    );
+    let twist = motions
+        .split("; ")
+        .find(|p| p.contains(".rx") && !p.contains(".ry") && !p.contains(".rz"))
+        .unwrap_or_else(|| panic!("no pure twist among {motions}"));
+    assert_eq!(twist.matches(".rx").count(), 5, "{twist}");
+}
+
+/// A mechanism (the four-bar's sway): the free motion lists its hinge angles.
+#[test]
+fn mechanism_statics_names_the_hinges_of_the_free_motion() {
+    let out = latdyn(&["statics", "models/fourbar.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("free motion"), "{err}");
+    assert!(err.contains("g1.angle"), "{err}");
+    assert!(!err.contains("stuck"), "{err}");
+}
+
+/// Zero load on the curved bend: the reference is the equilibrium, zero Newton
+/// iterations (was "load factor stuck at 0.000000", the residual being round-off of a
+/// curved mesh with no force scale to compare it to).
+#[test]
+fn zero_load_statics_on_the_curved_bend_succeeds_with_zero_iterations() {
+    let out = latdyn(&["statics", "models/bend45.toml", "--set", "P=0", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["newton_iterations"], 0, "{v}");
+    let tip = v["sensors"]["tip"].as_array().unwrap();
+    // the tip stays at R sin 45°, R (1 − cos 45°), 0
+    let r = 100.0f64;
+    let want = [r * 0.5f64.sqrt(), r * (1.0 - 0.5f64.sqrt()), 0.0];
+    for (g, w) in tip.iter().zip(want) {
+        assert!((g.as_f64().unwrap() - w).abs() < 1e-9, "{tip:?}");
+    }
+}
+
+/// A stiff model at zero load (EA = 1e18): the residual is exactly 0, which counts even
+/// though the factorization calls the Jacobian singular.
+#[test]
+fn zero_load_statics_of_a_stiff_cantilever_succeeds() {
+    let out = latdyn(&["statics", "models/cantilever.toml", "--set", "EA=1e18"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A shallow arch loaded past its limit point (symmetric limit load ≈ 1.18, P = 3): load
+/// control used to jump to the snapped-through branch and report it as if the path were
+/// continuous; now Newton steps that travel far beyond the tangent prediction are
+/// rejected and the solve ends at the limit with the load reached. The reached load
+/// factor times P must be the same limit load whatever P is (1e-3 relative: the step
+/// halving stops within 1e-7 of the load factor, the branch-jump guard a little earlier).
+#[test]
+fn statics_past_a_limit_point_says_so_with_the_load_reached() {
+    let mut reached = Vec::new();
+    for p in ["3", "8"] {
+        let out = latdyn(&[
+            "statics",
+            "tests/models/shallow_arch.toml",
+            "--set",
+            &format!("P={p}"),
+        ]);
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        eprintln!("{err}");
+        assert!(err.contains("limit point at load factor"), "{err}");
+        assert!(!err.contains("stuck"), "{err}");
+        let lam: f64 = err
+            .split("load factor ")
+            .nth(1)
+            .and_then(|t| t.split_whitespace().next())
+            .and_then(|t| t.parse().ok())
+            .expect("load factor in the message");
+        reached.push(lam * p.parse::<f64>().unwrap());
+    }
+    assert!(
+        (reached[0] - reached[1]).abs() < 1e-3 * reached[0],
+        "limit load {reached:?}"
+    );
+    assert!(reached[0] > 0.5 && reached[0] < 2.0, "{reached:?}");
+}
+
+/// A tolerance far below round-off (1e-30) stops: accepted at the round-off of the
+/// coordinates (corrections below 64 u of the model size), with the same answer as the
+/// default tolerance to 1e-9 of the tip displacement. It used to run without end.
+#[test]
+fn unreachable_tolerance_statics_stops_at_the_roundoff_floor() {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/bend45.toml"),
+    )
+    .unwrap()
+    .replace("load_steps = 20", "load_steps = 20\ntol = 1e-30");
+    let m = latdyn::model::compile_str(&text, "bend45_tol.toml", &[]).unwrap();
+    let t0 = std::time::Instant::now();
+    let sol = solve_statics(&m).expect("converges at the round-off floor");
+    assert!(t0.elapsed().as_secs() < 60);
+    let base = solve_statics(&shipped("bend45.toml", &[])).unwrap();
+    let (a, b) = (
+        sensor(&m, &sol.sensors, "tip"),
+        sensor(&m, &base.sensors, "tip"),
+    );
+    for k in 0..3 {
+        assert!((a[k] - b[k]).abs() < 1e-9 * 100.0, "{a:?} vs {b:?}");
+    }
+}
+
+/// A hinge or body axis with huge components ([1e308, 1e308, 0]) used to overflow its
+/// norm and become the zero vector (the hinge then acted as a clamp); it must give the
+/// same axis as [1, 1, 0]. The pendulum's rotation axis is turned into the x-y diagonal;
+/// its frequency (gravity along z) must be the same to round-off either way.
+#[test]
+fn huge_axis_components_normalise_without_overflow() {
+    let base = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pendulum.toml"),
+    )
+    .unwrap();
+    assert!(base.contains("axis = [0, 1, 0]"));
+    let freq = |axis: &str| {
+        let text = base.replace("axis = [0, 1, 0]", &format!("axis = {axis}"));
+        let m = latdyn::model::compile_str(&text, "pendulum_axis.toml", &[]).unwrap();
+        let st = solve_statics(&m).unwrap().state;
+        latdyn::solver::modes::modes(&m, &st)
+            .unwrap()
+            .frequencies_hz[0]
+    };
+    let (a, b) = (freq("[1e308, 1e308, 0]"), freq("[1, 1, 0]"));
+    assert!(a > 0.1, "{a}");
+    assert!((a - b).abs() <= 1e-12 * b, "{a} vs {b}");
+    // zero and non-finite axes are located errors
+    for bad in ["[0, 0, 0]", "[0, inf, 0]", "[1e-320, 0, 0]"] {
+        let text = base.replace("axis = [0, 1, 0]", &format!("axis = {bad}"));
+        let r = latdyn::model::compile_str(&text, "pendulum_axis.toml", &[]);
+        if bad == "[1e-320, 0, 0]" {
+            // tiny but nonzero: a valid direction (+x), scaled before normalising
+            assert!(r.is_ok(), "{bad}: {:?}", r.err().map(|e| e.to_string()));
+        } else {
+            let e = r
+                .err()
+                .unwrap_or_else(|| panic!("{bad} accepted"))
+                .to_string();
+            assert!(
+                e.contains("axis") && e.contains("pendulum_axis.toml:32:"),
+                "{bad}: {e}"
+            );
+        }
+    }
+}
+
+/// `[solver] tol` is a relative residual: tol >= 1 (or 1e300) accepted the undeformed
+/// state as converged under any load, and anything above 1e-2 accepts states out of
+/// equilibrium by more than 1 % of the largest force; these and tol <= 0 are located
+/// errors (exit 2). 1e-2 itself and tight values are accepted.
+#[test]
+fn solver_tolerance_outside_its_range_is_a_located_error() {
+    let base = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/cantilever.toml"),
+    )
+    .unwrap();
+    let with = |tol: &str| {
+        base.replace(
+            "output_dt = 0.01",
+            &format!("output_dt = 0.01\ntol = {tol}"),
+        )
+    };
+    for bad in ["2", "1e300", "0.05", "0", "-1e-8"] {
+        let r = latdyn::model::compile_str(&with(bad), "cantilever_tol.toml", &[]);
+        let e = r
+            .err()
+            .unwrap_or_else(|| panic!("tol = {bad} accepted"))
+            .to_string();
+        assert!(
+            e.contains("solver.tol") && e.contains("cantilever_tol.toml:66:"),
+            "tol = {bad}: {e}"
+        );
+    }
+    for good in ["1e-2", "1e-8", "1e-14"] {
+        assert!(latdyn::model::compile_str(&with(good), "cantilever_tol.toml", &[]).is_ok());
+    }
+    // through the CLI: exit 2 before any solve
+    let dir = std::env::temp_dir().join(format!("latdyn_tol_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("cantilever_tol.toml");
+    std::fs::write(&path, with("2")).unwrap();
+    let out = latdyn(&["statics", path.to_str().unwrap(), "--set", "P=1"]);
+    assert_eq!(out.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A drive that turns NaN mid-run (`0*sqrt(1 - t)` added to the hub drive: the same
+/// motion until t = 1, where its rate is 0·∞ = NaN, and NaN after) is named with its coordinate, text and the time, not blamed on Newton.
+#[test]
+fn nan_drive_mid_run_names_the_expression_and_time() {
+    let base = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/rotating_cantilever.toml"),
+    )
+    .unwrap();
+    assert!(base.contains("drive = \"omega*t\""));
+    let text = base.replace("drive = \"omega*t\"", "drive = \"omega*t + 0*sqrt(1 - t)\"");
+    let m = latdyn::model::compile_str(&text, "nan_drive.toml", &[("t_end".into(), 1.5)])
+        .unwrap_or_else(|e| panic!("{e}"));
+    let (_, _, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
+    let e = err.expect("the run must fail").to_string();
+    eprintln!("{e}");
+    assert!(e.contains("sqrt(1 - t)") && e.contains("drive of"), "{e}");
+    assert!(!e.contains("Newton"), "{e}");
+    let t: f64 = e
+        .split("t = ")
+        .nth(1)
+        .and_then(|x| x.split_whitespace().next())
+        .and_then(|x| x.parse().ok())
+        .expect("time in the message");
+    // the first step end at or past t = 1 (dt = 0.01 in this model)
+    assert!((1.0..1.0101).contains(&t), "{e}");
+}
+
+/// The same for a load's time factor (`log(0.5 - t)`, NaN past t = 0.5), through the CLI.
+#[test]
+fn nan_load_factor_mid_run_names_the_load_and_time() {
+    let base = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/cantilever.toml"),
+    )
+    .unwrap();
+    let text = base.replace(
+        "moment = [0, \"M\", 0]",
+        "moment = [0, \"M\", 0]\nscale = \"log(0.5 - t)\"",
+    );
+    let dir = std::env::temp_dir().join(format!("latdyn_nan_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("nan_load.toml");
+    std::fs::write(&path, text).unwrap();
+    let out = latdyn(&["run", path.to_str().unwrap(), "--set", "P=1", "--json"]);
+    let err =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    eprintln!("{err}");
+    assert_ne!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("log(0.5 - t)") && err.contains("load 1"),
+        "{err}"
+    );
+    assert!(err.contains("t = 0.50"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
