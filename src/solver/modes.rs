@@ -186,7 +186,7 @@ fn m_orthonormal(m: &[f64], n: usize, y: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec
         }
         matvec(m, n, &v, &mut mv);
         let norm = dot(&v, &mv).max(0.0).sqrt();
-        if !(norm > 1e-10 * norm0) || !norm.is_finite() {
+        if norm.is_nan() || norm <= 1e-10 * norm0 || !norm.is_finite() {
             continue;
         }
         v.iter_mut().for_each(|a| *a /= norm);
