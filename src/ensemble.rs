@@ -33,9 +33,10 @@ use crate::solver::linear::NewtonSystem;
 
 #[derive(Debug, thiserror::Error)]
 pub enum EnsembleError {
-    #[error("{0}")]
+    // transparent: with `{0}` and a source, a chain printer shows the message twice
+    #[error(transparent)]
     Model(#[from] model::ModelError),
-    #[error("{0}")]
+    #[error(transparent)]
     Output(#[from] OutputError),
     #[error("{0}")]
     Invalid(String),

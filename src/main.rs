@@ -258,7 +258,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::from(2)
         }
     }
@@ -1209,4 +1209,22 @@ fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
         .lock()
         .write_all(text.as_bytes())
         .context("writing to stdout")
+}
+
+/// An error and its causes joined by `: `, leaving out a cause whose text is already
+/// shown: wrappers that print their source (`"cannot write {path}: {source}"`) and
+/// context that repeats the message made `{e:#}` print errors two or three times.
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        if s.is_empty() || out.contains(&s) {
+            continue;
+        }
+        if !out.is_empty() {
+            out += ": ";
+        }
+        out += &s;
+    }
+    out
 }
