@@ -120,8 +120,8 @@ struct BackendArgs {
 struct ModesArgs {
     #[command(flatten)]
     model: ModelArgs,
-    /// number of modes to report
-    #[arg(long, default_value_t = 10)]
+    /// number of modes to report (1 to 100000)
+    #[arg(long, default_value_t = 10, value_parser = parse_mode_count)]
     count: usize,
     /// linearise about `static` equilibrium under the loads, or the `reference`
     /// configuration; `auto` = static when the model has loads or gravity
@@ -163,6 +163,17 @@ struct SweepArgs {
     /// derived.first_bending_hz
     #[arg(long, value_name = "SENSOR[.COMPONENT]")]
     frequency: Option<String>,
+}
+
+/// `--count`: at least one mode, and bounded so that `count + spares` cannot overflow.
+fn parse_mode_count(s: &str) -> Result<usize, String> {
+    const MAX: usize = 100_000;
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=MAX).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{s}`: need a whole number of modes from 1 to {MAX}"
+        )),
+    }
 }
 
 fn parse_shard(s: &str) -> Result<(usize, usize), String> {

@@ -34,7 +34,7 @@ pub fn compile_str(text: &str, path: &str, overrides: &[(String, f64)]) -> Resul
     Compiler {
         file: path,
         text,
-        params: Vec::new(),
+        params: Params::default(),
         limits,
     }
     .compile(&spec, overrides)
@@ -94,11 +94,35 @@ impl std::ops::Deref for Names {
     }
 }
 
+/// Resolved parameters in file order with a hash index: an expression's names are found
+/// in O(1), so a file of many parameters that refer to early ones compiles in linear time.
+#[derive(Default)]
+struct Params {
+    list: Vec<(String, f64)>,
+    index: HashMap<String, usize>,
+}
+
+impl Params {
+    fn push(&mut self, name: String, v: f64) {
+        self.index.insert(name.clone(), self.list.len());
+        self.list.push((name, v));
+    }
+    fn contains(&self, name: &str) -> bool {
+        self.index.contains_key(name)
+    }
+}
+
+impl expr::Scope for Params {
+    fn value(&self, name: &str) -> Option<f64> {
+        self.index.get(name).map(|&i| self.list[i].1)
+    }
+}
+
 struct Compiler<'a> {
     file: &'a str,
     text: &'a str,
     /// parameters resolved so far (all of them once parameters are done)
-    params: Vec<(String, f64)>,
+    params: Params,
     limits: Limits,
 }
 
@@ -176,7 +200,7 @@ impl Compiler<'_> {
         match n {
             Num::Value(v) if v.is_finite() => Ok(*v),
             Num::Value(v) => Err(self.err(span, field, format!("value {v} is not finite"))),
-            Num::Expr(s) => expr::eval(s, &self.params).map_err(|e| self.err(span, field, e)),
+            Num::Expr(s) => expr::eval_in(s, &self.params).map_err(|e| self.err(span, field, e)),
         }
     }
 
@@ -611,7 +635,7 @@ impl Compiler<'_> {
             name,
             path: self.file.to_string(),
             source: self.text.to_string(),
-            params: self.params,
+            params: self.params.list,
             node_names: node_names.list,
             x0,
             node_kin,
@@ -658,7 +682,7 @@ impl Compiler<'_> {
                         .iter()
                         .map(|(k, _)| k.get_ref())
                         .find(|k| {
-                            !self.params.iter().any(|(n, _)| n == *k)
+                            !self.params.contains(k)
                                 && e.message.contains(&format!("undefined parameter `{k}`"))
                         });
                     if let Some(k) = later {
@@ -669,11 +693,11 @@ impl Compiler<'_> {
                     e
                 })?,
             };
-            self.params.push((name.clone(), v));
+            self.params.push(name.clone(), v);
         }
         for (name, _) in overrides {
-            if !self.params.iter().any(|(n, _)| n == name) {
-                let known: Vec<&str> = self.params.iter().map(|(n, _)| n.as_str()).collect();
+            if !self.params.contains(name) {
+                let known: Vec<&str> = self.params.list.iter().map(|(n, _)| n.as_str()).collect();
                 return Err(ModelError::file(
                     self.file,
                     Some(format!("--set {name}")),
@@ -1021,7 +1045,7 @@ impl Compiler<'_> {
                 Ok(TimeFunction::constant(*v))
             }
             Num::Expr(s) => {
-                TimeFunction::new(s, &self.params).map_err(|e| self.err(n.span(), field, e))
+                TimeFunction::new_in(s, &self.params).map_err(|e| self.err(n.span(), field, e))
             }
         }
     }

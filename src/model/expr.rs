@@ -57,12 +57,27 @@ pub const CONSTANTS: [(&str, f64); 7] = [
 /// The free variable of driver expressions; no parameter may take this name.
 pub const TIME: &str = "t";
 
-fn lookup(name: &str, params: &[(String, f64)]) -> Option<f64> {
+/// The values of the names an expression may use (parameters).
+pub trait Scope {
+    fn value(&self, name: &str) -> Option<f64>;
+}
+
+/// A short list of parameters, searched from the end (later entries win).
+pub struct List<'a>(pub &'a [(String, f64)]);
+
+impl Scope for List<'_> {
+    fn value(&self, name: &str) -> Option<f64> {
+        self.0
+            .iter()
+            .rev()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+    }
+}
+
+fn lookup(name: &str, params: &dyn Scope) -> Option<f64> {
     params
-        .iter()
-        .rev()
-        .find(|(n, _)| n == name)
-        .map(|(_, v)| *v)
+        .value(name)
         .or_else(|| CONSTANTS.iter().find(|(n, _)| *n == name).map(|(_, v)| *v))
 }
 
@@ -413,6 +428,11 @@ fn undefined(name: &str, text: &str) -> String {
 
 /// Evaluates an expression over the parameters (and the built-in constants).
 pub fn eval(text: &str, params: &[(String, f64)]) -> Result<f64, String> {
+    eval_in(text, &List(params))
+}
+
+/// [`eval`] over any [`Scope`] (the compiler's hashed parameter table).
+pub fn eval_in(text: &str, params: &dyn Scope) -> Result<f64, String> {
     let expr = parse::<f64>(text)?;
     let vals = expr
         .var_names()
@@ -760,7 +780,7 @@ enum Kind {
 
 /// Replaces every name except `t` by its value, so the stored expressions have at most the
 /// one variable `t` and evaluate without building a variable vector.
-fn substitute<T>(expr: Expr<T>, text: &str, params: &[(String, f64)]) -> Result<Expr<T>, String>
+fn substitute<T>(expr: Expr<T>, text: &str, params: &dyn Scope) -> Result<Expr<T>, String>
 where
     T: Clone + Debug + Default + FromStr + exmex::num::Float,
     <T as FromStr>::Err: Debug,
@@ -786,6 +806,11 @@ where
 impl TimeFunction {
     /// A driver from an expression in `t` and the parameters.
     pub fn new(source: &str, params: &[(String, f64)]) -> Result<TimeFunction, String> {
+        TimeFunction::new_in(source, &List(params))
+    }
+
+    /// [`TimeFunction::new`] over any [`Scope`].
+    pub fn new_in(source: &str, params: &dyn Scope) -> Result<TimeFunction, String> {
         let q = substitute(parse::<f64>(source)?, source, params)?;
         let kind = if q.var_names().is_empty() {
             let v = q
@@ -844,7 +869,7 @@ impl TimeFunction {
 
     #[cfg(test)]
     fn force_jet(source: &str, params: &[(String, f64)]) -> TimeFunction {
-        let e = substitute(parse::<Jet>(source).unwrap(), source, params).unwrap();
+        let e = substitute(parse::<Jet>(source).unwrap(), source, &List(params)).unwrap();
         TimeFunction {
             source: source.into(),
             kind: Kind::Jet(Box::new(e)),
