@@ -244,3 +244,19 @@ fn forty_thousand_elements_compile() {
     assert_eq!(v["elements"], 40000);
     assert_eq!(v["nodes"], 40001);
 }
+
+#[test]
+fn mode_counts_are_bounded() {
+    // `count + 4` spare shapes overflowed (a panic in debug builds) for usize::MAX
+    let out = latdyn(&[
+        "modes",
+        ROTATING,
+        "--vary",
+        "omega=1:2:2",
+        "--count",
+        "18446744073709551615",
+    ]);
+    fails_with(&out, &["--count", "from 1 to 100000"]);
+    let out = latdyn(&["modes", CANTILEVER, "--count", "0"]);
+    fails_with(&out, &["--count", "from 1 to 100000"]);
+}
