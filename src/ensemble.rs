@@ -33,9 +33,10 @@ use crate::solver::linear::NewtonSystem;
 
 #[derive(Debug, thiserror::Error)]
 pub enum EnsembleError {
-    #[error("{0}")]
+    // transparent: with `{0}` and a source, a chain printer shows the message twice
+    #[error(transparent)]
     Model(#[from] model::ModelError),
-    #[error("{0}")]
+    #[error(transparent)]
     Output(#[from] OutputError),
     #[error("{0}")]
     Invalid(String),
@@ -72,6 +73,14 @@ impl Range {
         if count == 0 {
             return Err(format!("`{s}`: COUNT must be at least 1"));
         }
+        // before anything allocates one entry per value
+        let limit = model::Limits::from_env()?.variants;
+        if count as u64 > limit {
+            return Err(format!(
+                "`{s}`: {}",
+                model::limits::exceeded("COUNT (values)", count as f64, "variants", limit)
+            ));
+        }
         Ok(Range {
             name: name.trim().to_string(),
             start: num(parts[0])?,
@@ -90,7 +99,128 @@ impl Range {
     }
 }
 
-/// The full grid of several ranges (last range varies fastest).
+/// The variants of a sweep: the `--vary` grid, the rows of a `--variants` CSV, or every
+/// row crossed with the grid. Checked before anything is allocated per variant: each
+/// parameter is given by one source only, names a parameter of the model (loaded with
+/// the `--set` overrides `base`), and the variant count and the values the campaign keeps
+/// stay within the limits (see [`model::limits`]).
+pub fn variants(
+    model_path: &Path,
+    base: &[(String, f64)],
+    vary: &[Range],
+    csv: Option<&Path>,
+) -> Result<Vec<Vec<(String, f64)>>, EnsembleError> {
+    let lim = model::Limits::from_env().map_err(EnsembleError::Invalid)?;
+    for (i, r) in vary.iter().enumerate() {
+        if let Some(first) = vary[..i].iter().find(|x| x.name == r.name) {
+            return Err(EnsembleError::Invalid(format!(
+                "--vary {}: given twice ({}={}:{}:{} and {}={}:{}:{}); vary a parameter once \
+                 (list arbitrary values in a --variants CSV)",
+                r.name,
+                first.name,
+                first.start,
+                first.stop,
+                first.count,
+                r.name,
+                r.start,
+                r.stop,
+                r.count
+            )));
+        }
+    }
+    let grid_count: f64 = vary.iter().map(|r| r.count as f64).product();
+    let too_many = |n: f64, what: &str| {
+        EnsembleError::Invalid(model::limits::exceeded(what, n, "variants", lim.variants))
+    };
+    if grid_count > lim.variants as f64 {
+        return Err(too_many(grid_count, "--vary: variants of the grid"));
+    }
+    let rows = match csv {
+        Some(p) => Some(read_variants_csv(p)?),
+        None => None,
+    };
+    if let (Some(rows), Some(p)) = (&rows, csv) {
+        if let Some(r) = vary
+            .iter()
+            .find(|r| rows[0].iter().any(|(n, _)| *n == r.name))
+        {
+            return Err(EnsembleError::Invalid(format!(
+                "--vary {} and --variants {} both set `{}`: give each parameter in one of them",
+                r.name,
+                p.display(),
+                r.name
+            )));
+        }
+        let total = rows.len() as f64 * grid_count;
+        if total > lim.variants as f64 {
+            return Err(too_many(
+                total,
+                "--variants rows × --vary grid: variants of the campaign",
+            ));
+        }
+    }
+    let m = model::load(model_path, base)?;
+    let known = |n: &str| m.params.iter().any(|(p, _)| p == n);
+    let names: Vec<&str> = m.params.iter().map(|(n, _)| n.as_str()).collect();
+    let listed = if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    };
+    if let Some(r) = vary.iter().find(|r| !known(&r.name)) {
+        return Err(EnsembleError::Invalid(format!(
+            "--vary {}: the model has no parameter `{}` (parameters: {listed})",
+            r.name, r.name
+        )));
+    }
+    if let (Some(rows), Some(p)) = (&rows, csv) {
+        if let Some((n, _)) = rows[0].iter().find(|(n, _)| !known(n)) {
+            return Err(EnsembleError::Invalid(format!(
+                "--variants {}: column `{n}`: the model has no parameter `{n}` (parameters: \
+                 {listed})",
+                p.display()
+            )));
+        }
+    }
+    let n_var = rows.as_ref().map_or(1.0, |r| r.len() as f64) * grid_count;
+    let per_variant = dynamics::output_times(&m).len() as f64
+        * (1.0
+            + m.sensors
+                .iter()
+                .map(|s| sensors::components(&s.kind).len() as f64)
+                .sum::<f64>());
+    if per_variant * n_var > lim.output_values as f64 {
+        return Err(EnsembleError::Invalid(model::limits::exceeded(
+            &format!(
+                "values the campaign keeps, {} per variant (output samples × (sensor \
+                 components + time)) × {} variants",
+                model::limits::count(per_variant),
+                model::limits::count(n_var)
+            ),
+            per_variant * n_var,
+            "output_values",
+            lim.output_values,
+        )));
+    }
+    let g = grid(vary);
+    Ok(match rows {
+        None => g,
+        // the CSV rows crossed with the --vary grid
+        Some(rows) => rows
+            .iter()
+            .flat_map(|r| {
+                g.iter().map(move |x| {
+                    let mut v = r.clone();
+                    v.extend(x.iter().cloned());
+                    v
+                })
+            })
+            .collect(),
+    })
+}
+
+/// The full grid of several ranges (last range varies fastest); callers check its size
+/// first (see [`variants`]).
 pub fn grid(ranges: &[Range]) -> Vec<Vec<(String, f64)>> {
     let mut out: Vec<Vec<(String, f64)>> = vec![vec![]];
     for r in ranges {
@@ -109,8 +239,9 @@ pub fn grid(ranges: &[Range]) -> Vec<Vec<(String, f64)>> {
 
 /// Variants from a CSV file: a header of parameter names, one row of values per variant.
 pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, EnsembleError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| EnsembleError::Invalid(format!("{}: cannot read: {e}", path.display())))?;
+    let lim = model::Limits::from_env().map_err(EnsembleError::Invalid)?;
+    let text = model::limits::read_capped(path, lim.model_bytes, "--variants file")
+        .map_err(|e| EnsembleError::Invalid(format!("{}: {e}", path.display())))?;
     let mut lines = text
         .lines()
         .enumerate()
@@ -119,8 +250,37 @@ pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, Ensembl
         .next()
         .ok_or_else(|| EnsembleError::Invalid(format!("{}: empty file", path.display())))?;
     let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
+    for (i, n) in names.iter().enumerate() {
+        if n.is_empty() {
+            return Err(EnsembleError::Invalid(format!(
+                "{}: header column {} has no name",
+                path.display(),
+                i + 1
+            )));
+        }
+        if names[..i].contains(n) {
+            return Err(EnsembleError::Invalid(format!(
+                "{}: column `{n}` appears twice in the header (columns {} and {})",
+                path.display(),
+                names[..i].iter().position(|x| x == n).map_or(0, |k| k + 1),
+                i + 1
+            )));
+        }
+    }
     let mut rows = Vec::new();
     for (ln, line) in lines {
+        if rows.len() as u64 >= lim.variants {
+            return Err(EnsembleError::Invalid(format!(
+                "{}: {}",
+                path.display(),
+                model::limits::exceeded(
+                    "variant rows",
+                    (rows.len() + 1) as f64,
+                    "variants",
+                    lim.variants
+                )
+            )));
+        }
         let vals: Vec<&str> = line.split(',').map(str::trim).collect();
         if vals.len() != names.len() {
             return Err(EnsembleError::Invalid(format!(
@@ -133,13 +293,17 @@ pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, Ensembl
         }
         let mut row = Vec::new();
         for (n, v) in names.iter().zip(vals) {
-            let x: f64 = v.parse().map_err(|_| {
-                EnsembleError::Invalid(format!(
-                    "{}:{}: column `{n}`: `{v}` is not a number",
-                    path.display(),
-                    ln + 1
-                ))
-            })?;
+            let x: f64 = v
+                .parse()
+                .ok()
+                .filter(|x: &f64| x.is_finite())
+                .ok_or_else(|| {
+                    EnsembleError::Invalid(format!(
+                        "{}:{}: column `{n}`: `{v}` is not a finite number",
+                        path.display(),
+                        ln + 1
+                    ))
+                })?;
             row.push((n.clone(), x));
         }
         rows.push(row);

@@ -58,8 +58,8 @@ struct BenchArgs {
     /// where results.md, results.json and work_precision.png go
     #[arg(long, default_value = "docs/bench")]
     out: PathBuf,
-    /// threads for the ensemble rows (default: all cores)
-    #[arg(long)]
+    /// threads for the ensemble rows (default: all cores; at most 4 per core or 256)
+    #[arg(long, value_parser = latdyn::model::limits::parse_threads)]
     threads: Option<usize>,
     /// print the report object as JSON on stdout
     #[arg(long)]
@@ -120,8 +120,8 @@ struct BackendArgs {
 struct ModesArgs {
     #[command(flatten)]
     model: ModelArgs,
-    /// number of modes to report
-    #[arg(long, default_value_t = 10)]
+    /// number of modes to report (1 to 100000)
+    #[arg(long, default_value_t = 10, value_parser = parse_mode_count)]
     count: usize,
     /// linearise about `static` equilibrium under the loads, or the `reference`
     /// configuration; `auto` = static when the model has loads or gravity
@@ -153,8 +153,8 @@ struct SweepArgs {
     #[command(flatten)]
     backend: BackendArgs,
     /// worker threads (default: all cores; with a GPU backend, one per variant in flight,
-    /// up to 128)
-    #[arg(long)]
+    /// up to 128); from 1 to 4 per core or 256, whichever is more
+    #[arg(long, value_parser = latdyn::model::limits::parse_threads)]
     threads: Option<usize>,
     /// run only the K-th of N interleaved subsets of the variants: K/N
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
@@ -163,6 +163,17 @@ struct SweepArgs {
     /// derived.first_bending_hz
     #[arg(long, value_name = "SENSOR[.COMPONENT]")]
     frequency: Option<String>,
+}
+
+/// `--count`: at least one mode, and bounded so that `count + spares` cannot overflow.
+fn parse_mode_count(s: &str) -> Result<usize, String> {
+    const MAX: usize = 100_000;
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=MAX).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{s}`: need a whole number of modes from 1 to {MAX}"
+        )),
+    }
 }
 
 fn parse_shard(s: &str) -> Result<(usize, usize), String> {
@@ -258,7 +269,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::from(2)
         }
     }
@@ -562,6 +573,20 @@ fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> anyhow::Resu
     if args.count == 0 {
         return Err(anyhow!("--count must be at least 1"));
     }
+    let base = model::load(&args.model.model, &args.model.set)?;
+    if base.param(&range.name).is_none() {
+        let names: Vec<&str> = base.params.iter().map(|(n, _)| n.as_str()).collect();
+        return Err(anyhow!(
+            "--vary {}: the model has no parameter `{}` (parameters: {})",
+            range.name,
+            range.name,
+            if names.is_empty() {
+                "none".to_string()
+            } else {
+                names.join(", ")
+            }
+        ));
+    }
     let values = range.values();
     // a few spare shapes per value: a branch whose mode has moved past others must
     // still find it among the candidates
@@ -804,24 +829,12 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     use std::io::IsTerminal;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
-    let mut variants = ensemble::grid(&args.vary);
-    if let Some(csv) = &args.variants {
-        let rows = ensemble::read_variants_csv(csv)?;
-        variants = if args.vary.is_empty() {
-            rows
-        } else {
-            // the CSV rows crossed with the --vary grid
-            rows.iter()
-                .flat_map(|r| {
-                    variants.iter().map(move |g| {
-                        let mut x = r.clone();
-                        x.extend(g.iter().cloned());
-                        x
-                    })
-                })
-                .collect()
-        };
-    }
+    let variants = ensemble::variants(
+        &args.model.model,
+        &args.model.set,
+        &args.vary,
+        args.variants.as_deref(),
+    )?;
     let frequency_sensor = match &args.frequency {
         None => None,
         Some(spec) => {
@@ -1219,4 +1232,22 @@ fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
         .lock()
         .write_all(text.as_bytes())
         .context("writing to stdout")
+}
+
+/// An error and its causes joined by `: `, leaving out a cause whose text is already
+/// shown: wrappers that print their source (`"cannot write {path}: {source}"`) and
+/// context that repeats the message made `{e:#}` print errors two or three times.
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        if s.is_empty() || out.contains(&s) {
+            continue;
+        }
+        if !out.is_empty() {
+            out += ": ";
+        }
+        out += &s;
+    }
+    out
 }

@@ -147,3 +147,147 @@ fn garbage_never_panics() {
         }
     }
 }
+
+fn latdyn(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env_remove("LATDYN_LIMITS")
+        .output()
+        .expect("run latdyn")
+}
+
+fn temp(name: &str, text: &str) -> PathBuf {
+    let p = std::env::temp_dir().join(format!("latdyn_bad_{}_{name}", std::process::id()));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Exit code 2 and stderr containing `part`; returns stderr.
+fn usage_error(args: &[&str], part: &str) -> String {
+    let out = latdyn(args);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(part), "{args:?}: expected `{part}` in: {err}");
+    err
+}
+
+#[test]
+fn a_model_without_beams_or_bodies_is_refused_by_every_verb() {
+    // an empty file was "solved" by every verb with exit 0
+    let empty = temp("empty.toml", "");
+    let nodes_only = temp(
+        "nodes_only.toml",
+        "[parameters]\nL = 1\n[[nodes]]\nname = \"a\"\nposition = [0, 0, 0]\n",
+    );
+    for p in [&empty, &nodes_only] {
+        let p = p.to_str().unwrap();
+        for verb in ["check", "statics", "modes", "run"] {
+            usage_error(&[verb, p], "model defines nothing to simulate");
+        }
+    }
+}
+
+#[test]
+fn vary_and_variants_name_each_parameter_once_and_errors_name_their_flag() {
+    let m = "models/rotating_cantilever.toml";
+    // the second range silently replaced the first
+    let e = usage_error(
+        &["sweep", m, "--vary", "omega=1:2:2", "--vary", "omega=3:4:2"],
+        "--vary omega: given twice",
+    );
+    assert!(
+        e.contains("omega=1:2:2") && e.contains("omega=3:4:2"),
+        "{e}"
+    );
+    let dup = temp("dup.csv", "omega,EI,omega\n1,2,3\n");
+    usage_error(
+        &["sweep", m, "--variants", dup.to_str().unwrap()],
+        "column `omega` appears twice in the header (columns 1 and 3)",
+    );
+    let one = temp("one.csv", "omega\n1\n");
+    usage_error(
+        &[
+            "sweep",
+            m,
+            "--variants",
+            one.to_str().unwrap(),
+            "--vary",
+            "omega=1:2:2",
+        ],
+        "--vary omega and --variants",
+    );
+    // these said `--set`
+    let e = usage_error(
+        &["sweep", m, "--vary", "omegax=1:2:2"],
+        "--vary omegax: the model has no parameter",
+    );
+    assert!(!e.contains("--set"), "{e}");
+    let e = usage_error(
+        &["modes", m, "--vary", "omegax=1:2:2"],
+        "--vary omegax: the model has no parameter",
+    );
+    assert!(!e.contains("--set"), "{e}");
+    let unk = temp("unk.csv", "omegay\n1\n");
+    let e = usage_error(
+        &["sweep", m, "--variants", unk.to_str().unwrap()],
+        "column `omegay`: the model has no parameter",
+    );
+    assert!(!e.contains("--set"), "{e}");
+    let nan = temp("nan.csv", "omega\nNaN\n");
+    usage_error(
+        &["sweep", m, "--variants", nan.to_str().unwrap()],
+        "`NaN` is not a finite number",
+    );
+}
+
+#[test]
+fn each_error_is_printed_once() {
+    // a model error inside a sweep, and an output error, were printed two or three times
+    let e = usage_error(
+        &[
+            "sweep",
+            "tests/bad_models/dt_zero.toml",
+            "--vary",
+            "dt=1:2:2",
+        ],
+        "must be > 0",
+    );
+    assert_eq!(e.matches("must be > 0").count(), 1, "{e}");
+    let e = usage_error(&["check", "no/such/model.toml"], "cannot read model file");
+    assert_eq!(e.matches("No such file").count(), 1, "{e}");
+}
+
+#[test]
+fn nested_two_argument_functions_parse_in_models() {
+    // `max(0, min(t, 2 - t))` failed with "parentheses mismatch"
+    let text = std::fs::read_to_string(dir("models/cantilever.toml"))
+        .unwrap()
+        .replace(
+            "elements = 8",
+            "elements = \"max(2, min(8, 2*5 - 1))\"\nclip = \"atan2(1, max(1, min(3, 4)))\"",
+        );
+    let m = compile_str(&text, "nest.toml", &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(m.param("elements"), Some(8.0));
+    assert_eq!(m.param("clip"), Some(1f64.atan2(3.0)));
+    assert_eq!(m.elements.len(), 8);
+}
+
+#[test]
+fn expression_errors_are_located_without_library_internals() {
+    let text = std::fs::read_to_string(dir("models/cantilever.toml"))
+        .unwrap()
+        .replace("elements = 8", "elements = \"2 sin(1)\"");
+    let e = compile_str(&text, "bad.toml", &[]).unwrap_err().to_string();
+    assert!(
+        e.starts_with("bad.toml:14:12: field `parameters.elements`"),
+        "{e}"
+    );
+    assert!(
+        e.contains("missing operator before `sin` at character 3"),
+        "{e}"
+    );
+    // exmex's own messages append its tokens in Debug form (operators as structs of
+    // function pointers)
+    assert!(!e.contains("left:") && !e.contains("0x"), "{e}");
+}

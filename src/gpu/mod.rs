@@ -179,10 +179,28 @@ impl AdapterSummary {
 }
 
 fn instance() -> wgpu::Instance {
+    quiet_device_select();
     wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends: wgpu::Backends::VULKAN | wgpu::Backends::GL,
         ..wgpu::InstanceDescriptor::new_without_display_handle()
     })
+}
+
+/// Mesa's Vulkan device-select layer (installed with mesa-vulkan-drivers) calls
+/// `wl_display_connect` when an instance enables `VK_KHR_wayland_surface`, which wgpu
+/// always does, and libwayland then prints "error: XDG_RUNTIME_DIR is invalid or not set
+/// in the environment" on a machine without a Wayland session, on every successful GPU
+/// run. The layer only reorders devices for presentation; latdyn computes headless and
+/// picks its adapter itself (`select`), so the layer is switched off with its documented
+/// `NODEVICE_SELECT` unless the user set that variable. Set once, on the thread that
+/// creates the first instance, before any GPU thread exists.
+fn quiet_device_select() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        if std::env::var_os("NODEVICE_SELECT").is_none() {
+            std::env::set_var("NODEVICE_SELECT", "1");
+        }
+    });
 }
 
 /// Every adapter wgpu finds (Vulkan and OpenGL ES backends). Never panics: a machine

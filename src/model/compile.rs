@@ -5,12 +5,13 @@
 //! x, y, z), then body dofs in file order, then hinge angles in joint order. Nodes are
 //! the user's nodes in file order followed by each beam's interior nodes `BEAM:1`, ...
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 use std::path::Path;
 
 use super::error::ModelError;
 use super::expr::{self, TimeFunction};
+use super::limits::{self, Limits};
 use super::spec::{self, *};
 use super::types::*;
 use crate::math::*;
@@ -20,18 +21,21 @@ type Result<T> = std::result::Result<T, ModelError>;
 /// Reads and compiles a model file; `overrides` replace parameter values (`--set`).
 pub fn load(path: &Path, overrides: &[(String, f64)]) -> Result<Model> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| ModelError::file(&file, None, format!("cannot read model file: {e}")))?;
+    let lim = Limits::from_env().map_err(|e| ModelError::file(&file, None, e))?;
+    let text = limits::read_capped(path, lim.model_bytes, "model file")
+        .map_err(|e| ModelError::file(&file, None, e))?;
     compile_str(&text, &file, overrides)
 }
 
 /// Compiles model text; `path` names the file in messages and in `Model::path`.
 pub fn compile_str(text: &str, path: &str, overrides: &[(String, f64)]) -> Result<Model> {
+    let limits = Limits::from_env().map_err(|e| ModelError::file(path, None, e))?;
     let spec = spec::parse(text, path)?;
     Compiler {
         file: path,
         text,
-        params: Vec::new(),
+        params: Params::default(),
+        limits,
     }
     .compile(&spec, overrides)
 }
@@ -50,11 +54,76 @@ pub fn parse_set(s: &str) -> std::result::Result<(String, f64), String> {
     Ok((name.to_string(), v))
 }
 
+/// Names in definition order with a hash index, so that resolving a reference is O(1)
+/// (a linear scan per interior node made meshing quadratic in the element count).
+#[derive(Default)]
+struct Names {
+    list: Vec<String>,
+    index: HashMap<String, usize>,
+}
+
+impl Names {
+    fn from_list(list: Vec<String>) -> Names {
+        let mut n = Names::default();
+        for x in list {
+            n.push(x);
+        }
+        n
+    }
+    /// Appends `name`; false (and nothing appended) if it is already there.
+    fn push(&mut self, name: String) -> bool {
+        if self.index.contains_key(&name) {
+            return false;
+        }
+        self.index.insert(name.clone(), self.list.len());
+        self.list.push(name);
+        true
+    }
+    fn contains(&self, name: &str) -> bool {
+        self.index.contains_key(name)
+    }
+    fn get(&self, name: &str) -> Option<usize> {
+        self.index.get(name).copied()
+    }
+}
+
+impl std::ops::Deref for Names {
+    type Target = [String];
+    fn deref(&self) -> &[String] {
+        &self.list
+    }
+}
+
+/// Resolved parameters in file order with a hash index: an expression's names are found
+/// in O(1), so a file of many parameters that refer to early ones compiles in linear time.
+#[derive(Default)]
+struct Params {
+    list: Vec<(String, f64)>,
+    index: HashMap<String, usize>,
+}
+
+impl Params {
+    fn push(&mut self, name: String, v: f64) {
+        self.index.insert(name.clone(), self.list.len());
+        self.list.push((name, v));
+    }
+    fn contains(&self, name: &str) -> bool {
+        self.index.contains_key(name)
+    }
+}
+
+impl expr::Scope for Params {
+    fn value(&self, name: &str) -> Option<f64> {
+        self.index.get(name).map(|&i| self.list[i].1)
+    }
+}
+
 struct Compiler<'a> {
     file: &'a str,
     text: &'a str,
     /// parameters resolved so far (all of them once parameters are done)
-    params: Vec<(String, f64)>,
+    params: Params,
+    limits: Limits,
 }
 
 /// A joint after name resolution; becomes node kinematics once dofs are numbered.
@@ -131,7 +200,7 @@ impl Compiler<'_> {
         match n {
             Num::Value(v) if v.is_finite() => Ok(*v),
             Num::Value(v) => Err(self.err(span, field, format!("value {v} is not finite"))),
-            Num::Expr(s) => expr::eval(s, &self.params).map_err(|e| self.err(span, field, e)),
+            Num::Expr(s) => expr::eval_in(s, &self.params).map_err(|e| self.err(span, field, e)),
         }
     }
 
@@ -163,11 +232,22 @@ impl Compiler<'_> {
 
     fn integer(&self, n: &Spanned<Num>, field: &str, min: usize) -> Result<usize> {
         let v = self.num(n, field)?;
-        if (v - v.round()).abs() > 1e-9 * v.abs().max(1.0) || v.round() < min as f64 {
+        if !v.is_finite()
+            || (v - v.round()).abs() > 1e-9 * v.abs().max(1.0)
+            || v.round() < min as f64
+        {
             return Err(self.err(
                 n.span(),
                 field,
                 format!("must be an integer >= {min}, is {v}"),
+            ));
+        }
+        // beyond 2^53 not every integer is a float, and no count here is meant that large
+        if v > 9.007_199_254_740_992e15 {
+            return Err(self.err(
+                n.span(),
+                field,
+                format!("must be an integer below 2^53, is {v}"),
             ));
         }
         Ok(v.round() as usize)
@@ -251,16 +331,9 @@ impl Compiler<'_> {
         }
     }
 
-    fn lookup(
-        &self,
-        names: &[String],
-        n: &Spanned<String>,
-        field: &str,
-        what: &str,
-    ) -> Result<usize> {
+    fn lookup(&self, names: &Names, n: &Spanned<String>, field: &str, what: &str) -> Result<usize> {
         names
-            .iter()
-            .position(|x| x == n.get_ref())
+            .get(n.get_ref())
             .ok_or_else(|| self.err(n.span(), field, format!("unknown {what} `{}`", n.get_ref())))
     }
 
@@ -268,7 +341,8 @@ impl Compiler<'_> {
         self.parameters(spec, overrides)?;
         let sections = self.sections(spec)?;
 
-        let mut node_names = Vec::new();
+        self.nonempty(spec)?;
+        let mut node_names = Names::default();
         let mut x0 = Vec::new();
         for (i, n) in spec.nodes.iter().enumerate() {
             let f = format!("nodes[{i}]");
@@ -302,7 +376,7 @@ impl Compiler<'_> {
             supports[node] = Some(*s.get_ref().kind.get_ref());
         }
 
-        let body_names: Vec<String> = bodies.iter().map(|b| b.body.name.clone()).collect();
+        let body_names = Names::from_list(bodies.iter().map(|b| b.body.name.clone()).collect());
         let (joints, hinge_drafts, joint_names, joint_hinge) = self.joints(
             spec,
             &node_names,
@@ -313,7 +387,28 @@ impl Compiler<'_> {
             size,
         )?;
 
-        // dofs, in the documented order
+        // dofs, in the documented order; bounded before any is created
+        let dof_bound = 6.0 * node_names.len() as f64
+            + bodies
+                .iter()
+                .map(|b| 3.0 * b.dofs.len() as f64)
+                .sum::<f64>()
+            + hinge_drafts.len() as f64;
+        if dof_bound > self.limits.dofs as f64 {
+            return Err(ModelError::file(
+                self.file,
+                None,
+                limits::exceeded(
+                    &format!(
+                        "the model's coordinates ({} nodes × 6, plus bodies and hinges)",
+                        node_names.len()
+                    ),
+                    dof_bound,
+                    "dofs",
+                    self.limits.dofs,
+                ),
+            ));
+        }
         let mut dofs: Vec<Dof> = Vec::new();
         let mut spins: Vec<Spin> = Vec::new();
         let mut node_kin = Vec::with_capacity(node_names.len());
@@ -528,6 +623,7 @@ impl Compiler<'_> {
             &joint_hinge,
         )?;
         let solver = self.solver(spec)?;
+        self.output_size(spec, &solver, &sensors)?;
 
         let name = match spec.model.as_ref().and_then(|m| m.get_ref().name.as_ref()) {
             Some(n) => n.get_ref().clone(),
@@ -544,8 +640,8 @@ impl Compiler<'_> {
             name,
             path: self.file.to_string(),
             source: self.text.to_string(),
-            params: self.params,
-            node_names,
+            params: self.params.list,
+            node_names: node_names.list,
             x0,
             node_kin,
             kin_order,
@@ -572,6 +668,13 @@ impl Compiler<'_> {
             let f = format!("parameters.{name}");
             expr::check_param_name(name).map_err(|e| self.err(key.span(), &f, e))?;
             let v = match overrides.iter().rev().find(|(n, _)| n == name) {
+                Some((_, v)) if !v.is_finite() => {
+                    return Err(ModelError::file(
+                        self.file,
+                        Some(f),
+                        format!("override value {v} is not finite"),
+                    ))
+                }
                 Some((_, v)) => *v,
                 None => match value.get_ref() {
                     ParamValue::Plain(n) => self.num_at(n, value.span(), &f),
@@ -584,7 +687,7 @@ impl Compiler<'_> {
                         .iter()
                         .map(|(k, _)| k.get_ref())
                         .find(|k| {
-                            !self.params.iter().any(|(n, _)| n == *k)
+                            !self.params.contains(k)
                                 && e.message.contains(&format!("undefined parameter `{k}`"))
                         });
                     if let Some(k) = later {
@@ -595,11 +698,11 @@ impl Compiler<'_> {
                     e
                 })?,
             };
-            self.params.push((name.clone(), v));
+            self.params.push(name.clone(), v);
         }
         for (name, _) in overrides {
-            if !self.params.iter().any(|(n, _)| n == name) {
-                let known: Vec<&str> = self.params.iter().map(|(n, _)| n.as_str()).collect();
+            if !self.params.contains(name) {
+                let known: Vec<&str> = self.params.list.iter().map(|(n, _)| n.as_str()).collect();
                 return Err(ModelError::file(
                     self.file,
                     Some(format!("--set {name}")),
@@ -805,12 +908,13 @@ impl Compiler<'_> {
 
     fn bodies(&self, spec: &Spec) -> Result<Vec<BodyDraft>> {
         let mut out: Vec<BodyDraft> = Vec::new();
+        let mut seen = HashSet::new();
         for (i, b) in spec.bodies.iter().enumerate() {
             let f = format!("bodies[{i}]");
             let span = b.span();
             let b = b.get_ref();
             let name = self.name(&b.name, &format!("{f}.name"))?;
-            if name == "ground" || out.iter().any(|o| o.body.name == name) {
+            if name == "ground" || !seen.insert(name.clone()) {
                 let why = if name == "ground" {
                     "`ground` is reserved for the fixed frame".to_string()
                 } else {
@@ -946,7 +1050,7 @@ impl Compiler<'_> {
                 Ok(TimeFunction::constant(*v))
             }
             Num::Expr(s) => {
-                TimeFunction::new(s, &self.params).map_err(|e| self.err(n.span(), field, e))
+                TimeFunction::new_in(s, &self.params).map_err(|e| self.err(n.span(), field, e))
             }
         }
     }
@@ -1029,18 +1133,19 @@ impl Compiler<'_> {
         &self,
         spec: &Spec,
         sections: &HashMap<String, BeamProps>,
-        node_names: &mut Vec<String>,
+        node_names: &mut Names,
         x0: &mut Vec<Vec3>,
         size: f64,
     ) -> Result<(Vec<Element>, Vec<Beam>)> {
         let mut elements = Vec::new();
         let mut beams: Vec<Beam> = Vec::new();
+        let mut beam_names = HashSet::new();
         for (bi, b) in spec.beams.iter().enumerate() {
             let f = format!("beams[{bi}]");
             let bspan = b.span();
             let b = b.get_ref();
             let name = self.name(&b.name, &format!("{f}.name"))?;
-            if beams.iter().any(|x| x.name == name) {
+            if !beam_names.insert(name.clone()) {
                 return Err(self.err(
                     b.name.span(),
                     format!("{f}.name"),
@@ -1050,6 +1155,20 @@ impl Compiler<'_> {
             let n1 = self.lookup(node_names, &b.from, &format!("{f}.from"), "node")?;
             let n2 = self.lookup(node_names, &b.to, &format!("{f}.to"), "node")?;
             let n = self.integer(&b.elements, &format!("{f}.elements"), 1)?;
+            // before meshing allocates anything for this beam
+            let total = elements.len() as f64 + n as f64;
+            if total > self.limits.elements as f64 {
+                return Err(self.err(
+                    b.elements.span(),
+                    format!("{f}.elements"),
+                    limits::exceeded(
+                        &format!("element count of the model with this beam's {n}"),
+                        total,
+                        "elements",
+                        self.limits.elements,
+                    ),
+                ));
+            }
             let props = *sections.get(b.section.get_ref()).ok_or_else(|| {
                 self.err(
                     b.section.span(),
@@ -1099,14 +1218,13 @@ impl Compiler<'_> {
             let mut nodes = vec![n1];
             for (k, p) in points.into_iter().enumerate() {
                 let nn = format!("{name}:{}", k + 1);
-                if node_names.contains(&nn) {
+                if !node_names.push(nn.clone()) {
                     return Err(self.err(
                         b.name.span(),
                         format!("{f}.name"),
                         format!("interior node name `{nn}` is already used by a node"),
                     ));
                 }
-                node_names.push(nn);
                 x0.push(p);
                 nodes.push(x0.len() - 1);
             }
@@ -1167,21 +1285,18 @@ impl Compiler<'_> {
     fn joints(
         &self,
         spec: &Spec,
-        node_names: &[String],
+        node_names: &Names,
         x0: &[Vec3],
         supports: &[Option<SupportType>],
         bodies: &[BodyDraft],
-        body_names: &[String],
+        body_names: &Names,
         size: f64,
-    ) -> Result<(
-        Vec<JointDraft>,
-        Vec<HingeDraft>,
-        Vec<String>,
-        Vec<Option<usize>>,
-    )> {
+    ) -> Result<(Vec<JointDraft>, Vec<HingeDraft>, Names, Vec<Option<usize>>)> {
         let mut drafts: Vec<JointDraft> = Vec::new();
+        // node -> its joint (index into drafts)
+        let mut joint_at: HashMap<usize, usize> = HashMap::new();
         let mut hinges = Vec::new();
-        let mut names: Vec<String> = Vec::new();
+        let mut names = Names::default();
         let mut joint_hinge = Vec::new();
         for (i, js) in spec.joints.iter().enumerate() {
             let f = format!("joints[{i}]");
@@ -1207,7 +1322,7 @@ impl Compiler<'_> {
                     ),
                 ));
             }
-            if let Some(other) = drafts.iter().position(|d| d.node == node) {
+            if let Some(&other) = joint_at.get(&node) {
                 return Err(self.err(
                     j.node.span(),
                     fnode,
@@ -1301,6 +1416,7 @@ impl Compiler<'_> {
                     Some(hinges.len() - 1)
                 }
             };
+            joint_at.insert(node, drafts.len());
             drafts.push(JointDraft {
                 node,
                 parent,
@@ -1315,6 +1431,10 @@ impl Compiler<'_> {
             let mut cur = d;
             while let Parent::Node(m) = cur.parent {
                 chain.push(m);
+                if chain.len() > drafts.len() + 1 {
+                    // a cycle not through d: reported when its own joint comes up
+                    break;
+                }
                 if m == d.node {
                     let path: Vec<&str> = chain.iter().map(|&n| node_names[n].as_str()).collect();
                     let t = spec.joints[i]
@@ -1328,8 +1448,8 @@ impl Compiler<'_> {
                         format!("joints form a cycle: {}", path.join(" -> ")),
                     ));
                 }
-                match drafts.iter().find(|x| x.node == m) {
-                    Some(next) => cur = next,
+                match joint_at.get(&m) {
+                    Some(&next) => cur = &drafts[next],
                     None => break,
                 }
             }
@@ -1341,21 +1461,22 @@ impl Compiler<'_> {
     fn sensors(
         &self,
         spec: &Spec,
-        node_names: &[String],
+        node_names: &Names,
         beams: &[Beam],
-        body_names: &[String],
+        body_names: &Names,
         body_dofs: &[Vec<BodyDofRef>],
-        joint_names: &[String],
+        joint_names: &Names,
         joint_hinge: &[Option<usize>],
     ) -> Result<Vec<Sensor>> {
-        let beam_names: Vec<String> = beams.iter().map(|b| b.name.clone()).collect();
+        let beam_names = Names::from_list(beams.iter().map(|b| b.name.clone()).collect());
         let mut out: Vec<Sensor> = Vec::new();
+        let mut sensor_names = HashSet::new();
         for (i, ss) in spec.sensors.iter().enumerate() {
             let f = format!("sensors[{i}]");
             let span = ss.span();
             let s = ss.get_ref();
             let name = self.name(&s.name, &format!("{f}.name"))?;
-            if out.iter().any(|o| o.name == name) {
+            if !sensor_names.insert(name.clone()) {
                 return Err(self.err(
                     s.name.span(),
                     format!("{f}.name"),
@@ -1584,6 +1705,58 @@ impl Compiler<'_> {
             out.push(Sensor { name, kind });
         }
         Ok(out)
+    }
+
+    /// A model with nothing that moves: every verb would "solve" it without doing anything.
+    fn nonempty(&self, spec: &Spec) -> Result<()> {
+        if spec.beams.is_empty() && spec.bodies.is_empty() {
+            return Err(ModelError::file(
+                self.file,
+                None,
+                "model defines nothing to simulate: no [[beams]] and no [[bodies]]",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The values a run keeps (the time and every sensor component at every output
+    /// sample), checked against the limit before `output_times` or a history allocates.
+    fn output_size(&self, spec: &Spec, s: &SolverSettings, sensors: &[Sensor]) -> Result<()> {
+        let dt_out = if s.output_dt > 0.0 { s.output_dt } else { s.dt };
+        // as in dynamics::output_times
+        let samples = (s.t_end / dt_out - 1e-9).ceil().max(1.0) + 1.0;
+        let components: usize = sensors
+            .iter()
+            .map(|x| crate::sensors::components(&x.kind).len())
+            .sum();
+        let values = samples * (components as f64 + 1.0);
+        if values <= self.limits.output_values as f64 {
+            return Ok(());
+        }
+        let sp = spec.solver.as_ref().map(|x| x.get_ref());
+        let (field, span) = match sp {
+            Some(SolverSpec {
+                output_dt: Some(v), ..
+            }) if s.output_dt > 0.0 => ("solver.output_dt", v.span()),
+            Some(SolverSpec { dt: Some(v), .. }) => ("solver.dt", v.span()),
+            Some(SolverSpec { t_end: Some(v), .. }) => ("solver.t_end", v.span()),
+            _ => ("solver", 0..0),
+        };
+        Err(self.err(
+            span,
+            field,
+            limits::exceeded(
+                &format!(
+                    "values to keep for the output, {} samples (t_end {} / interval {dt_out}) × \
+                     ({components} sensor components + time)",
+                    limits::count(samples),
+                    s.t_end
+                ),
+                values,
+                "output_values",
+                self.limits.output_values,
+            ),
+        ))
     }
 
     fn solver(&self, spec: &Spec) -> Result<SolverSettings> {

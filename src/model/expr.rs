@@ -57,24 +57,364 @@ pub const CONSTANTS: [(&str, f64); 7] = [
 /// The free variable of driver expressions; no parameter may take this name.
 pub const TIME: &str = "t";
 
-fn lookup(name: &str, params: &[(String, f64)]) -> Option<f64> {
+/// The values of the names an expression may use (parameters).
+pub trait Scope {
+    fn value(&self, name: &str) -> Option<f64>;
+}
+
+/// A short list of parameters, searched from the end (later entries win).
+pub struct List<'a>(pub &'a [(String, f64)]);
+
+impl Scope for List<'_> {
+    fn value(&self, name: &str) -> Option<f64> {
+        self.0
+            .iter()
+            .rev()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+    }
+}
+
+fn lookup(name: &str, params: &dyn Scope) -> Option<f64> {
     params
-        .iter()
-        .rev()
-        .find(|(n, _)| n == name)
-        .map(|(_, v)| *v)
+        .value(name)
         .or_else(|| CONSTANTS.iter().find(|(n, _)| *n == name).map(|(_, v)| *v))
 }
+
+/// Longest expression accepted, in bytes. exmex's parse time grows with the square of
+/// the length (a 500 kB sum took minutes); 4096 bytes parse in milliseconds and are far
+/// longer than any formula a model needs (constant parts can be parameters).
+pub const MAX_EXPR_LEN: usize = 4096;
+
+/// Deepest nesting of parentheses and two-argument calls: bounds the recursion of the
+/// rewrite below and of exmex's parser and differentiation.
+pub const MAX_EXPR_DEPTH: usize = 64;
 
 fn parse<T>(text: &str) -> Result<Expr<T>, String>
 where
     T: Clone + Debug + Default + FromStr + exmex::num::Float,
     <T as FromStr>::Err: Debug,
 {
+    let bad = |msg: String| format!("cannot parse expression `{}`: {msg}", shorten(text));
+    let ready = rewrite(text).map_err(bad)?;
+    Expr::<T>::parse(&ready).map_err(|e| bad(clean(e.msg())))
+}
+
+/// The expression for a message: long ones cut, so an error stays readable.
+fn shorten(text: &str) -> String {
+    const SHOW: usize = 120;
+    if text.chars().count() <= SHOW {
+        text.to_string()
+    } else {
+        let head: String = text.chars().take(SHOW).collect();
+        format!("{head}… ({} characters)", text.chars().count())
+    }
+}
+
+/// exmex's message without the tokens it appends in Debug form (`, left: ...; right:
+/// ...`, which for operators are structs of function pointers).
+fn clean(msg: &str) -> String {
+    let m = msg.split(", left:").next().unwrap_or(msg);
+    let m = m.strip_prefix("wlog ").unwrap_or(m);
+    if m.contains("0x") || m.contains('{') {
+        "not a valid expression".to_string()
+    } else {
+        m.to_string()
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Tok<'a> {
+    Num(&'a str),
+    Name(&'a str),
+    Op(char),
+    Open,
+    Close,
+    Comma,
+}
+
+fn is_name_start(c: char) -> bool {
+    c.is_ascii_alphabetic() || c == '_' || ('α'..='ω').contains(&c) || ('Α'..='Ω').contains(&c)
+}
+
+/// Tokens with their 1-based character position, split the way exmex splits them (its
+/// number pattern `SciMatcher`, its variable-name pattern).
+fn tokenize(text: &str) -> Result<Vec<(usize, Tok<'_>)>, String> {
+    let chars: Vec<(usize, char)> = text.char_indices().collect();
+    let at = |k: usize| chars.get(k).map(|c| c.1);
+    let byte = |k: usize| chars.get(k).map_or(text.len(), |c| c.0);
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < chars.len() {
+        let c = chars[k].1;
+        let start = k;
+        let tok = if c.is_whitespace() {
+            k += 1;
+            continue;
+        } else if c.is_ascii_digit() || (c == '.' && at(k + 1).is_some_and(|d| d.is_ascii_digit()))
+        {
+            while at(k).is_some_and(|d| d.is_ascii_digit()) {
+                k += 1;
+            }
+            if at(k) == Some('.') {
+                k += 1;
+                while at(k).is_some_and(|d| d.is_ascii_digit()) {
+                    k += 1;
+                }
+            }
+            if matches!(at(k), Some('e' | 'E')) {
+                let sign = usize::from(matches!(at(k + 1), Some('+' | '-')));
+                if at(k + 1 + sign).is_some_and(|d| d.is_ascii_digit()) {
+                    k += 1 + sign;
+                    while at(k).is_some_and(|d| d.is_ascii_digit()) {
+                        k += 1;
+                    }
+                }
+            }
+            Tok::Num(&text[byte(start)..byte(k)])
+        } else if is_name_start(c) {
+            while at(k).is_some_and(|d| is_name_start(d) || d.is_ascii_digit()) {
+                k += 1;
+            }
+            Tok::Name(&text[byte(start)..byte(k)])
+        } else {
+            k += 1;
+            match c {
+                '+' | '-' | '*' | '/' | '^' => Tok::Op(c),
+                '(' => Tok::Open,
+                ')' => Tok::Close,
+                ',' => Tok::Comma,
+                _ => return Err(format!("unexpected character `{c}` at character {}", k)),
+            }
+        };
+        out.push((start + 1, tok));
+    }
+    Ok(out)
+}
+
+/// exmex's operators written as words: two-argument ones (`min`, `max`, `atan2`) and
+/// one-argument ones (`sin`, ...).
+fn function_names() -> (Vec<&'static str>, Vec<&'static str>) {
+    let (mut two, mut one) = (Vec::new(), Vec::new());
+    for op in Ops::<f64>::make() {
+        let r = op.repr();
+        if r.chars().all(|c| c.is_ascii_alphanumeric()) {
+            if op.has_bin() {
+                two.push(r);
+            } else if op.has_unary() {
+                one.push(r);
+            }
+        }
+    }
+    (two, one)
+}
+
+fn describe(t: Tok) -> String {
+    match t {
+        Tok::Num(s) | Tok::Name(s) => format!("`{s}`"),
+        Tok::Op(c) => format!("`{c}`"),
+        Tok::Open => "`(`".into(),
+        Tok::Close => "`)`".into(),
+        Tok::Comma => "`,`".into(),
+    }
+}
+
+/// Checks an expression and rewrites every call of a two-argument function,
+/// `f(a, b)`, as `((a) f (b))`, which exmex parses at any nesting (its own comma
+/// handling keeps one pending call only, so `max(0, min(t, 2 - t))` failed with
+/// "parentheses mismatch"). Errors name the problem and its character position.
+fn rewrite(text: &str) -> Result<String, String> {
     if text.trim().is_empty() {
         return Err("empty expression".into());
     }
-    Expr::<T>::parse(text).map_err(|e| format!("cannot parse expression `{text}`: {}", e.msg()))
+    if text.len() > MAX_EXPR_LEN {
+        return Err(format!(
+            "{} bytes long, more than the limit of {MAX_EXPR_LEN} (move constant parts into \
+             parameters)",
+            text.len()
+        ));
+    }
+    let toks = tokenize(text)?;
+    let (two, one) = function_names();
+    for &(pos, t) in &toks {
+        if let Tok::Name(n) = t {
+            // exmex reads a two-argument function's name even at the start of a word
+            if let Some(f) = two.iter().find(|f| n.len() > f.len() && n.starts_with(**f)) {
+                return Err(format!(
+                    "name `{n}` at character {pos} starts with the function name `{f}`, \
+                     which is read as that function"
+                ));
+            }
+        }
+    }
+    let mut p = Rewriter {
+        toks: &toks,
+        i: 0,
+        out: String::new(),
+        two: &two,
+        one: &one,
+    };
+    p.expr(0)?;
+    match p.toks.get(p.i) {
+        None => Ok(p.out),
+        Some(&(pos, Tok::Close)) => Err(format!("unmatched `)` at character {pos}")),
+        Some(&(pos, Tok::Comma)) => Err(format!(
+            "`,` at character {pos} outside a function of two arguments ({})",
+            two.join(", ")
+        )),
+        Some(&(pos, t)) => Err(format!(
+            "missing operator before {} at character {pos}",
+            describe(t)
+        )),
+    }
+}
+
+struct Rewriter<'a, 't> {
+    toks: &'a [(usize, Tok<'t>)],
+    i: usize,
+    out: String,
+    two: &'a [&'static str],
+    one: &'a [&'static str],
+}
+
+impl<'t> Rewriter<'_, 't> {
+    fn emit(&mut self, s: &str) {
+        if !self.out.is_empty() {
+            self.out.push(' ');
+        }
+        self.out.push_str(s);
+    }
+
+    fn peek(&self) -> Option<(usize, Tok<'t>)> {
+        self.toks.get(self.i).copied()
+    }
+
+    /// Position of the end of the expression, for "ends where ... expected".
+    fn end(&self) -> usize {
+        self.toks.last().map_or(1, |t| t.0 + 1)
+    }
+
+    /// operand (binary-operator operand)*
+    fn expr(&mut self, depth: usize) -> Result<(), String> {
+        loop {
+            self.operand(depth)?;
+            match self.peek() {
+                Some((_, Tok::Op(c))) => {
+                    self.emit(&c.to_string());
+                    self.i += 1;
+                }
+                // `a max b`: exmex's infix form of a two-argument function
+                Some((_, Tok::Name(n))) if self.two.contains(&n) => {
+                    self.emit(n);
+                    self.i += 1;
+                }
+                _ => return Ok(()),
+            }
+        }
+    }
+
+    fn deeper(&self, depth: usize, pos: usize) -> Result<usize, String> {
+        if depth + 1 > MAX_EXPR_DEPTH {
+            return Err(format!(
+                "nested more than {MAX_EXPR_DEPTH} levels deep at character {pos}"
+            ));
+        }
+        Ok(depth + 1)
+    }
+
+    fn expect_close(&mut self, open: usize) -> Result<(), String> {
+        match self.peek() {
+            Some((_, Tok::Close)) => {
+                self.i += 1;
+                Ok(())
+            }
+            None => Err(format!("`(` at character {open} is never closed")),
+            Some((pos, Tok::Comma)) => Err(format!(
+                "`,` at character {pos} outside a function of two arguments ({})",
+                self.two.join(", ")
+            )),
+            Some((pos, t)) => Err(format!(
+                "missing operator before {} at character {pos}",
+                describe(t)
+            )),
+        }
+    }
+
+    /// prefix* (number | name | `(` expr `)` | f2 `(` expr `,` expr `)`)
+    fn operand(&mut self, depth: usize) -> Result<(), String> {
+        loop {
+            match self.peek() {
+                Some((_, Tok::Op(c @ ('-' | '+')))) => {
+                    self.emit(&c.to_string());
+                    self.i += 1;
+                }
+                Some((_, Tok::Name(n))) if self.one.contains(&n) => {
+                    self.emit(n);
+                    self.i += 1;
+                }
+                _ => break,
+            }
+        }
+        let Some((pos, t)) = self.peek() else {
+            return Err(format!(
+                "the expression ends at character {} where a value is expected",
+                self.end()
+            ));
+        };
+        self.i += 1;
+        match t {
+            Tok::Num(s) => self.emit(s),
+            Tok::Name(f) if self.two.contains(&f) => {
+                let open = match self.peek() {
+                    Some((p, Tok::Open)) => p,
+                    _ => {
+                        return Err(format!(
+                            "`{f}` at character {pos} takes two arguments: {f}(a, b)"
+                        ))
+                    }
+                };
+                self.i += 1;
+                let d = self.deeper(depth, open)?;
+                self.emit("((");
+                self.expr(d)?;
+                match self.peek() {
+                    Some((_, Tok::Comma)) => self.i += 1,
+                    Some((_, Tok::Close)) => {
+                        return Err(format!(
+                            "`{f}` at character {pos} takes two arguments, got one"
+                        ))
+                    }
+                    _ => self.expect_close(open)?,
+                }
+                self.emit(")");
+                self.emit(f);
+                self.emit("(");
+                self.expr(d)?;
+                if let Some((_, Tok::Comma)) = self.peek() {
+                    return Err(format!(
+                        "`{f}` at character {pos} takes two arguments, got more"
+                    ));
+                }
+                self.expect_close(open)?;
+                self.emit("))");
+            }
+            Tok::Name(n) => self.emit(n),
+            Tok::Open => {
+                let d = self.deeper(depth, pos)?;
+                self.emit("(");
+                self.expr(d)?;
+                self.expect_close(pos)?;
+                self.emit(")");
+            }
+            Tok::Close | Tok::Comma | Tok::Op(_) => {
+                return Err(format!(
+                    "{} at character {pos} where a value is expected",
+                    describe(t)
+                ))
+            }
+        }
+        Ok(())
+    }
 }
 
 fn undefined(name: &str, text: &str) -> String {
@@ -88,6 +428,11 @@ fn undefined(name: &str, text: &str) -> String {
 
 /// Evaluates an expression over the parameters (and the built-in constants).
 pub fn eval(text: &str, params: &[(String, f64)]) -> Result<f64, String> {
+    eval_in(text, &List(params))
+}
+
+/// [`eval`] over any [`Scope`] (the compiler's hashed parameter table).
+pub fn eval_in(text: &str, params: &dyn Scope) -> Result<f64, String> {
     let expr = parse::<f64>(text)?;
     let vals = expr
         .var_names()
@@ -435,7 +780,7 @@ enum Kind {
 
 /// Replaces every name except `t` by its value, so the stored expressions have at most the
 /// one variable `t` and evaluate without building a variable vector.
-fn substitute<T>(expr: Expr<T>, text: &str, params: &[(String, f64)]) -> Result<Expr<T>, String>
+fn substitute<T>(expr: Expr<T>, text: &str, params: &dyn Scope) -> Result<Expr<T>, String>
 where
     T: Clone + Debug + Default + FromStr + exmex::num::Float,
     <T as FromStr>::Err: Debug,
@@ -461,6 +806,11 @@ where
 impl TimeFunction {
     /// A driver from an expression in `t` and the parameters.
     pub fn new(source: &str, params: &[(String, f64)]) -> Result<TimeFunction, String> {
+        TimeFunction::new_in(source, &List(params))
+    }
+
+    /// [`TimeFunction::new`] over any [`Scope`].
+    pub fn new_in(source: &str, params: &dyn Scope) -> Result<TimeFunction, String> {
         let q = substitute(parse::<f64>(source)?, source, params)?;
         let kind = if q.var_names().is_empty() {
             let v = q
@@ -519,7 +869,7 @@ impl TimeFunction {
 
     #[cfg(test)]
     fn force_jet(source: &str, params: &[(String, f64)]) -> TimeFunction {
-        let e = substitute(parse::<Jet>(source).unwrap(), source, params).unwrap();
+        let e = substitute(parse::<Jet>(source).unwrap(), source, &List(params)).unwrap();
         TimeFunction {
             source: source.into(),
             kind: Kind::Jet(Box::new(e)),
@@ -569,6 +919,91 @@ mod tests {
         assert!(eval("2*(3", &[]).is_err());
         assert!(eval("", &[]).is_err());
         assert!(TimeFunction::new("q*t", &[]).unwrap_err().contains("`q`"));
+    }
+
+    #[test]
+    fn two_argument_functions_nest_in_either_argument() {
+        let ps = p(&[("a", 0.3), ("b", -2.0)]);
+        // each against the value computed by hand with f64's own min/max/atan2
+        let cases: [(&str, f64); 9] = [
+            ("max(0, min(1.5, 2 - 1.5))", 0.5),
+            ("max(0, min(a, 2 - a))", 0.3),
+            ("min(max(a, b), max(1, 2))", 0.3),
+            ("atan2(1, max(2, 3))", 1f64.atan2(3.0)),
+            ("atan2(min(a, 1), max(b, min(2, 5)))", 0.3f64.atan2(2.0)),
+            ("max(min(1, max(2, min(3, 4))), 0) * 2", 2.0),
+            ("-max(1, 2)^2", 4.0),
+            ("2*min(3, 4) + max(1, min(-1, 0))", 7.0),
+            ("sin(max(0, pi/2))", 1.0),
+        ];
+        for (src, want) in cases {
+            let got = eval(src, &ps).unwrap_or_else(|e| panic!("{src}: {e}"));
+            assert!((got - want).abs() <= 1e-15, "{src}: {got} vs {want}");
+        }
+        // a ramp clipped to [0, 1] and back, as a drive: the triangle of the issue
+        let f = TimeFunction::new("max(0, min(t, 2 - t))", &[]).unwrap();
+        for (t, q, v) in [(0.5, 0.5, 1.0), (1.5, 0.5, -1.0), (3.0, 0.0, 0.0)] {
+            let [q_, v_, a_] = f.eval(t);
+            assert_eq!((q_, v_, a_), (q, v, 0.0), "t={t}");
+        }
+        assert_eq!(eval("a max b", &ps).unwrap(), 0.3, "infix form still works");
+    }
+
+    #[test]
+    fn parse_errors_are_clean_and_positioned() {
+        for (src, part) in [
+            ("2 sin", "missing operator before `sin` at character 3"),
+            ("sin()", "`)` at character 5 where a value is expected"),
+            ("2 3", "missing operator before `3` at character 3"),
+            (
+                "1,2",
+                "`,` at character 2 outside a function of two arguments",
+            ),
+            (
+                "max(1)",
+                "`max` at character 1 takes two arguments, got one",
+            ),
+            ("max(1, 2, 3)", "takes two arguments, got more"),
+            ("max + 1", "`max` at character 1 takes two arguments"),
+            ("2*(3", "`(` at character 3 is never closed"),
+            ("2)", "unmatched `)` at character 2"),
+            ("2 # 3", "unexpected character `#` at character 3"),
+            ("2max(1, 2)", "`,` at character 7 outside a function"),
+            ("maxload*2", "starts with the function name `max`"),
+            ("2*", "ends at character 3 where a value is expected"),
+            ("", "empty expression"),
+        ] {
+            let e = eval(src, &[("maxload".into(), 1.0)]).unwrap_err();
+            assert!(e.contains(part), "{src}: `{e}` lacks `{part}`");
+            assert!(!e.contains("left:") && !e.contains("0x"), "{src}: {e}");
+        }
+        assert!(
+            clean("wlog an opening paren, left: Op((1, Operator { f: 0x5 }))")
+                .starts_with("an opening paren")
+        );
+    }
+
+    #[test]
+    fn long_and_deep_expressions_are_refused_quickly() {
+        let long = "1+".repeat(250_000) + "1";
+        let t0 = std::time::Instant::now();
+        let e = eval(&long, &[]).unwrap_err();
+        assert!(
+            e.contains("bytes long, more than the limit of 4096"),
+            "{}",
+            &e[..200]
+        );
+        assert!(e.len() < 400, "the message quotes the expression shortened");
+        // generous: the check is a length comparison; parsing it took minutes
+        assert!(t0.elapsed().as_secs_f64() < 5.0);
+        let near = "1+".repeat(2000) + "1";
+        assert_eq!(eval(&near, &[]).unwrap(), 2001.0);
+        let deep = format!("{}1{}", "(".repeat(100), ")".repeat(100));
+        assert!(eval(&deep, &[])
+            .unwrap_err()
+            .contains("nested more than 64"));
+        let ok = format!("{}1{}", "(".repeat(60), ")".repeat(60));
+        assert_eq!(eval(&ok, &[]).unwrap(), 1.0);
     }
 
     #[test]

@@ -6,9 +6,11 @@ mod error;
 pub mod expr;
 #[cfg(test)]
 mod feature_tests;
+pub mod limits;
 pub mod spec;
 mod types;
 
 pub use compile::{compile_str, load, parse_set};
 pub use error::ModelError;
+pub use limits::Limits;
 pub use types::*;

@@ -139,24 +139,36 @@ pub enum NodeKin {
 }
 
 /// Node order with masters before slaves; `None` if the `OnNode` links form a cycle.
+/// Each node's master chain is walked once (nodes already placed end the walk), so this
+/// is linear in the node count; repeated passes over all nodes were quadratic for a long
+/// chain of node-to-node hinges. Roots keep their index order.
 pub fn kinematic_order(node_kin: &[NodeKin]) -> Option<Vec<usize>> {
+    const NEW: u8 = 0;
+    const ON_PATH: u8 = 1;
+    const PLACED: u8 = 2;
     let n = node_kin.len();
-    let mut done = vec![false; n];
+    let mut mark = vec![NEW; n];
     let mut order = Vec::with_capacity(n);
-    while order.len() < n {
-        let before = order.len();
-        for i in 0..n {
-            let ready = match &node_kin[i] {
-                NodeKin::OnNode { master, .. } => done[*master],
-                _ => true,
-            };
-            if !done[i] && ready {
-                done[i] = true;
-                order.push(i);
+    let mut path = Vec::new();
+    for start in 0..n {
+        let mut i = start;
+        loop {
+            match mark[i] {
+                PLACED => break,
+                ON_PATH => return None,
+                _ => {}
+            }
+            mark[i] = ON_PATH;
+            path.push(i);
+            match &node_kin[i] {
+                NodeKin::OnNode { master, .. } if *master < n => i = *master,
+                NodeKin::OnNode { .. } => return None,
+                _ => break,
             }
         }
-        if order.len() == before {
-            return None;
+        while let Some(k) = path.pop() {
+            mark[k] = PLACED;
+            order.push(k);
         }
     }
     Some(order)
@@ -318,5 +330,42 @@ impl Model {
     }
     pub fn sensor_index(&self, name: &str) -> Option<usize> {
         self.sensors.iter().position(|s| s.name == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn on(master: usize) -> NodeKin {
+        NodeKin::OnNode {
+            master,
+            hinge: 0,
+            r_rel: crate::math::I3,
+        }
+    }
+
+    fn root() -> NodeKin {
+        NodeKin::Free {
+            trans: [None; 3],
+            spin: None,
+        }
+    }
+
+    #[test]
+    fn kinematic_order_puts_masters_first_and_finds_cycles() {
+        // 3 -> 1 -> 4 -> 0 (root), 2 root
+        let kin = vec![root(), on(4), root(), on(1), on(0)];
+        let order = kinematic_order(&kin).unwrap();
+        assert_eq!(order.len(), 5);
+        let pos = |k: usize| order.iter().position(|&x| x == k).unwrap();
+        assert!(pos(0) < pos(4) && pos(4) < pos(1) && pos(1) < pos(3));
+        assert!(kinematic_order(&[on(1), on(2), on(1)]).is_none());
+        assert!(kinematic_order(&[on(0)]).is_none());
+        // a chain of 200 000 hinged nodes: one walk, not one pass per link
+        let long: Vec<NodeKin> = std::iter::once(root())
+            .chain((1..200_000).map(|k| on(k - 1)))
+            .collect();
+        assert_eq!(kinematic_order(&long).unwrap().len(), 200_000);
     }
 }

@@ -1,0 +1,248 @@
+//! Resource limits, checked from the sizes a model and a command imply before anything of
+//! that size is allocated.
+//!
+//! The defaults keep a mistyped number (`--set elements=1e9`, `dt = 1e-12` with every
+//! step written out, `--vary omega=1:2:100000000`) from taking the machine's memory; they
+//! are far above what the shipped models need. A real model that needs more raises them
+//! with the environment variable `LATDYN_LIMITS`, a comma-separated list of `KEY=VALUE`
+//! (`LATDYN_LIMITS=elements=4e6,output_values=1e9`). Keys: see [`KEYS`].
+//!
+//! Not raisable, because no real input comes near them: the length and nesting depth of
+//! an expression (see `expr`) and the number of worker threads (see [`max_threads`]).
+
+use std::io::Read;
+use std::path::Path;
+
+/// Name of the environment variable that raises (or lowers) the limits.
+pub const ENV: &str = "LATDYN_LIMITS";
+
+/// The keys `LATDYN_LIMITS` accepts, with what each one bounds.
+pub const KEYS: [(&str, &str); 5] = [
+    (
+        "model_bytes",
+        "size of a model file or a --variants CSV file in bytes",
+    ),
+    ("elements", "beam elements of a model (all beams together)"),
+    ("dofs", "coordinates (degrees of freedom) of a model"),
+    (
+        "output_values",
+        "sensor values a run or campaign keeps: output samples × (sensor components + 1 for \
+         the time) × variants",
+    ),
+    (
+        "variants",
+        "variants of a sweep (--vary grid × --variants rows) or values of `modes --vary`",
+    ),
+];
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    pub model_bytes: u64,
+    pub elements: u64,
+    pub dofs: u64,
+    pub output_values: u64,
+    pub variants: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits {
+            // a generated model of 100 000 explicit nodes is about 10 MB of TOML
+            model_bytes: 64 << 20,
+            // compiling and solving take a few kB per element: about 4 GB at the limit
+            elements: 1_000_000,
+            // 6 per node plus bodies and hinges: the element limit with room to spare
+            dofs: 10_000_000,
+            // 8 bytes each in the file, and more in memory while a run keeps its history
+            output_values: 100_000_000,
+            // each variant is a compiled model held in memory for the campaign
+            variants: 100_000,
+        }
+    }
+}
+
+impl Limits {
+    /// The defaults with the values of `LATDYN_LIMITS` applied.
+    pub fn from_env() -> Result<Limits, String> {
+        match std::env::var(ENV) {
+            Ok(s) => Limits::parse(&s),
+            Err(std::env::VarError::NotPresent) => Ok(Limits::default()),
+            Err(e) => Err(format!("{ENV}: {e}")),
+        }
+    }
+
+    /// The defaults with `KEY=VALUE,...` applied (VALUE a positive integer, `1e6` allowed).
+    pub fn parse(s: &str) -> Result<Limits, String> {
+        let mut l = Limits::default();
+        for item in s.split(',').map(str::trim).filter(|x| !x.is_empty()) {
+            let (k, v) = item
+                .split_once('=')
+                .ok_or_else(|| format!("{ENV}: expected KEY=VALUE, got `{item}`"))?;
+            let (k, v) = (k.trim(), v.trim());
+            let x: f64 = v
+                .parse()
+                .map_err(|_| format!("{ENV}: {k}: `{v}` is not a number"))?;
+            if !(x >= 1.0 && x.fract() == 0.0 && x <= 1e18) {
+                return Err(format!(
+                    "{ENV}: {k}: must be a whole number from 1 to 1e18, is {v}"
+                ));
+            }
+            let x = x as u64;
+            match k {
+                "model_bytes" => l.model_bytes = x,
+                "elements" => l.elements = x,
+                "dofs" => l.dofs = x,
+                "output_values" => l.output_values = x,
+                "variants" => l.variants = x,
+                _ => {
+                    let keys: Vec<&str> = KEYS.iter().map(|(k, _)| *k).collect();
+                    return Err(format!(
+                        "{ENV}: unknown key `{k}` (keys: {})",
+                        keys.join(", ")
+                    ));
+                }
+            }
+        }
+        Ok(l)
+    }
+}
+
+/// The message for a quantity over its limit: what, how much, the limit, how to raise it.
+/// `value` is an f64 so that sizes beyond any integer type (1e300 samples) print as they are.
+pub fn exceeded(what: &str, value: f64, key: &str, limit: u64) -> String {
+    format!(
+        "{what}: {} exceeds the limit of {limit} (set by {ENV}, key `{key}`; if you \
+         really need more, raise it, e.g. {ENV}={key}={})",
+        count(value),
+        limit.saturating_mul(10)
+    )
+}
+
+/// A count for messages: exact below 1e15, else in scientific notation.
+pub fn count(x: f64) -> String {
+    if x.abs() < 1e15 {
+        format!("{}", x as u64)
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// Reads a text file of at most `cap` bytes, refusing anything that is not a regular file
+/// (a device such as /dev/zero, a FIFO, a directory) before opening it, so that neither
+/// an endless stream nor a blocking open can hang the program.
+pub fn read_capped(path: &Path, cap: u64, what: &str) -> Result<String, String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read {what}: {e}"))?;
+    if !meta.is_file() {
+        return Err(format!(
+            "cannot read {what}: not a regular file ({})",
+            file_kind(&meta)
+        ));
+    }
+    if meta.len() > cap {
+        return Err(exceeded(
+            &format!("{what} size in bytes"),
+            meta.len() as f64,
+            "model_bytes",
+            cap,
+        ));
+    }
+    let f = std::fs::File::open(path).map_err(|e| format!("cannot read {what}: {e}"))?;
+    let mut bytes = Vec::new();
+    // the file may grow between the size check and the read: never read past the cap
+    f.take(cap + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read {what}: {e}"))?;
+    if bytes.len() as u64 > cap {
+        return Err(exceeded(
+            &format!("{what} size in bytes"),
+            bytes.len() as f64,
+            "model_bytes",
+            cap,
+        ));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        format!(
+            "cannot read {what}: not UTF-8 text (invalid byte at offset {})",
+            e.utf8_error().valid_up_to()
+        )
+    })
+}
+
+fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    if t.is_dir() {
+        "a directory"
+    } else if t.is_fifo() {
+        "a FIFO"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// Most worker threads a campaign may ask for: 4 per core, at least 256 (a GPU sweep
+/// runs up to 128 solver threads that mostly wait on the batcher). More only costs
+/// memory and scheduling; 100 000 threads made the machine unresponsive.
+pub fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (4 * cores).max(256)
+}
+
+/// Parses a `--threads` value: a whole number from 1 to [`max_threads`].
+pub fn parse_threads(s: &str) -> Result<usize, String> {
+    let n: usize = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a whole number of threads"))?;
+    let max = max_threads();
+    if n == 0 {
+        return Err("must be at least 1 (leave --threads out to use every core)".to_string());
+    }
+    if n > max {
+        return Err(format!(
+            "{n} threads exceed the limit of {max} (4 per core, at least 256)"
+        ));
+    }
+    Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn env_syntax_and_errors() {
+        let l = Limits::parse("elements=2e6, variants=5").unwrap();
+        assert_eq!((l.elements, l.variants), (2_000_000, 5));
+        assert_eq!(l.dofs, Limits::default().dofs);
+        assert!(Limits::parse("elements").unwrap_err().contains("KEY=VALUE"));
+        assert!(Limits::parse("elems=5")
+            .unwrap_err()
+            .contains("unknown key"));
+        assert!(Limits::parse("elements=0").is_err());
+        assert!(Limits::parse("elements=1.5").is_err());
+        assert!(Limits::parse("elements=nan").is_err());
+    }
+
+    #[test]
+    fn threads_are_bounded() {
+        assert!(parse_threads("0").unwrap_err().contains("at least 1"));
+        assert_eq!(parse_threads("3"), Ok(3));
+        assert!(parse_threads("100000").unwrap_err().contains("limit"));
+        assert!(parse_threads("-1").is_err());
+    }
+
+    #[test]
+    fn non_regular_files_are_refused_unread() {
+        let e = read_capped(Path::new("/dev/zero"), 1 << 20, "model file").unwrap_err();
+        assert!(e.contains("character device"), "{e}");
+        let e = read_capped(Path::new("/"), 1 << 20, "model file").unwrap_err();
+        assert!(e.contains("directory"), "{e}");
+    }
+}

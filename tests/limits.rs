@@ -1,0 +1,262 @@
+//! Resource limits: sizes implied by a model or a command are refused with a clear error
+//! before anything of that size is allocated. Every case runs the built binary with a
+//! deadline, because the defects were hangs and aborts (a test that hangs would only
+//! hang CI).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// Deadline for a command that must fail at once. Generous for a loaded debug build;
+/// the defects took minutes or tens of gigabytes.
+const DEADLINE: Duration = Duration::from_secs(60);
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs latdyn with `env` added, killing it and failing the test at the deadline.
+fn latdyn_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_latdyn"));
+    cmd.args(args)
+        .current_dir(root())
+        .env_remove("LATDYN_LIMITS")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let mut child = cmd.spawn().expect("spawn latdyn");
+    let t0 = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            return child.wait_with_output().expect("output");
+        }
+        if t0.elapsed() > DEADLINE {
+            let _ = child.kill();
+            let out = child.wait_with_output().expect("output");
+            panic!(
+                "latdyn {args:?} still running after {DEADLINE:?} (killed); stderr so far: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn latdyn(args: &[&str]) -> Output {
+    latdyn_env(args, &[])
+}
+
+/// Asserts exit code 2 and that stderr contains every one of `parts`; returns stderr.
+fn fails_with(out: &Output, parts: &[&str]) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
+    for p in parts {
+        assert!(err.contains(p), "expected `{p}` in: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+fn temp(name: &str, text: &str) -> PathBuf {
+    let p = std::env::temp_dir().join(format!("latdyn_limits_{}_{name}", std::process::id()));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+const CANTILEVER: &str = "models/cantilever.toml";
+const ROTATING: &str = "models/rotating_cantilever.toml";
+
+#[test]
+fn element_counts_beyond_the_limit_fail_at_the_beam_field_before_meshing() {
+    // 1e20 panicked (capacity overflow), 1e9 aborted on a 24 GB allocation, 1e8 hung
+    for n in ["1e9", "1e8", "1000001"] {
+        let out = latdyn(&["check", CANTILEVER, "--set", &format!("elements={n}")]);
+        fails_with(
+            &out,
+            &[
+                "cantilever.toml:38:12",
+                "beams[0].elements",
+                "exceeds the limit of 1000000",
+                "LATDYN_LIMITS=elements=",
+            ],
+        );
+    }
+    let out = latdyn(&["check", CANTILEVER, "--set", "elements=1e20"]);
+    fails_with(&out, &["beams[0].elements", "below 2^53"]);
+}
+
+#[test]
+fn element_counts_that_are_not_counts_are_located_errors() {
+    for n in ["1.5", "-3", "0"] {
+        let out = latdyn(&["check", CANTILEVER, "--set", &format!("elements={n}")]);
+        fails_with(&out, &["beams[0].elements", "must be an integer >= 1"]);
+    }
+    let text = std::fs::read_to_string(root().join(CANTILEVER))
+        .unwrap()
+        .replace("elements = 8", "elements = nan");
+    let p = temp("nan_elements.toml", &text);
+    let out = latdyn(&["check", p.to_str().unwrap()]);
+    fails_with(&out, &["parameters.elements", "not finite"]);
+}
+
+#[test]
+fn the_limits_are_raised_and_lowered_by_the_environment_variable() {
+    let out = latdyn_env(&["check", CANTILEVER], &[("LATDYN_LIMITS", "elements=5")]);
+    fails_with(&out, &["beams[0].elements", "8 exceeds the limit of 5"]);
+    let out = latdyn_env(&["check", CANTILEVER], &[("LATDYN_LIMITS", "elements=8")]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = latdyn_env(&["check", CANTILEVER], &[("LATDYN_LIMITS", "elemnts=5")]);
+    fails_with(&out, &["LATDYN_LIMITS", "unknown key `elemnts`"]);
+}
+
+#[test]
+fn an_output_grid_too_large_to_keep_fails_at_check_and_run() {
+    // 1e9 output samples passed `check` and aborted in `run`
+    let text = std::fs::read_to_string(root().join(CANTILEVER))
+        .unwrap()
+        .replace("output_dt = 0.01", "output_dt = 1e-9");
+    let p = temp("huge_output.toml", &text);
+    for verb in ["check", "run"] {
+        let out = latdyn(&[verb, p.to_str().unwrap()]);
+        fails_with(
+            &out,
+            &[
+                "solver.output_dt",
+                "1000000001 samples",
+                "output_values",
+                "exceeds the limit",
+            ],
+        );
+    }
+    let out = latdyn_env(
+        &["check", p.to_str().unwrap()],
+        &[("LATDYN_LIMITS", "output_values=1e10")],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn huge_vary_ranges_fail_before_any_variant_is_made() {
+    for verb in ["sweep", "modes"] {
+        let out = latdyn(&[verb, ROTATING, "--vary", "omega=1:2:100000000"]);
+        fails_with(
+            &out,
+            &[
+                "--vary",
+                "100000000 exceeds the limit of 100000",
+                "variants",
+            ],
+        );
+    }
+    // each range within the limit, the grid not
+    let out = latdyn(&[
+        "sweep",
+        ROTATING,
+        "--vary",
+        "omega=1:2:1000",
+        "--vary",
+        "EI=1:2:1000",
+    ]);
+    fails_with(&out, &["variants of the grid", "1000000 exceeds"]);
+    // variants within the limit, but samples × components × variants not
+    let out = latdyn(&[
+        "sweep",
+        ROTATING,
+        "--vary",
+        "omega=1:2:50000",
+        "--set",
+        "dt=1e-3",
+    ]);
+    fails_with(&out, &["values the campaign keeps", "output_values"]);
+}
+
+#[test]
+fn thread_counts_are_bounded() {
+    // 100000 threads hung the machine; 0 reported "0 threads"
+    let out = latdyn(&[
+        "sweep",
+        ROTATING,
+        "--vary",
+        "omega=1:2:2",
+        "--threads",
+        "100000",
+    ]);
+    fails_with(&out, &["--threads", "exceed the limit"]);
+    let out = latdyn(&["sweep", ROTATING, "--vary", "omega=1:2:2", "--threads", "0"]);
+    fails_with(&out, &["--threads", "at least 1"]);
+}
+
+#[test]
+fn non_regular_model_files_are_refused_without_reading() {
+    // /dev/zero was read to 4 GB
+    let out = latdyn(&["check", "/dev/zero"]);
+    fails_with(
+        &out,
+        &["/dev/zero", "not a regular file (a character device)"],
+    );
+    // a FIFO without a writer would block the open forever
+    let fifo = std::env::temp_dir().join(format!("latdyn_limits_{}_fifo", std::process::id()));
+    let _ = std::fs::remove_file(&fifo);
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if made.is_ok_and(|s| s.success()) {
+        let out = latdyn(&["check", fifo.to_str().unwrap()]);
+        fails_with(&out, &["not a regular file (a FIFO)"]);
+        let _ = std::fs::remove_file(&fifo);
+    } else {
+        eprintln!("SKIPPED the FIFO case: mkfifo is not available");
+    }
+    let out = latdyn(&["sweep", ROTATING, "--variants", "/dev/zero"]);
+    fails_with(&out, &["--variants file", "not a regular file"]);
+    // a file over the size limit is not read past it
+    let big = temp("big.toml", &format!("# {}\n", "x".repeat(2000)));
+    let out = latdyn_env(
+        &["check", big.to_str().unwrap()],
+        &[("LATDYN_LIMITS", "model_bytes=1000")],
+    );
+    fails_with(
+        &out,
+        &["model file size in bytes", "2003 exceeds the limit of 1000"],
+    );
+}
+
+#[test]
+fn forty_thousand_elements_compile() {
+    // meshing was quadratic (3.7 s for this in release); only completion is asserted,
+    // the test profile's speed says nothing about release timing
+    let out = latdyn(&["check", CANTILEVER, "--set", "elements=40000", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["elements"], 40000);
+    assert_eq!(v["nodes"], 40001);
+}
+
+#[test]
+fn mode_counts_are_bounded() {
+    // `count + 4` spare shapes overflowed (a panic in debug builds) for usize::MAX
+    let out = latdyn(&[
+        "modes",
+        ROTATING,
+        "--vary",
+        "omega=1:2:2",
+        "--count",
+        "18446744073709551615",
+    ]);
+    fails_with(&out, &["--count", "from 1 to 100000"]);
+    let out = latdyn(&["modes", CANTILEVER, "--count", "0"]);
+    fails_with(&out, &["--count", "from 1 to 100000"]);
+}
