@@ -347,7 +347,7 @@ fn describe(model: &Model, x: &[f64]) -> String {
         .map(|(i, v)| format!("{} {v:+.2}", names[*i]))
         .collect();
     let more = if comps.len() > 8 {
-        format!(" (+{} smaller)", comps.len() - 8)
+        format!(" (+{} more)", comps.len() - 8)
     } else {
         String::new()
     };
