@@ -448,3 +448,42 @@ fn ill_conditioned_curved_beam_frequency_is_warned() {
     assert!(est.iter().any(|e| *e > 1e-6), "{est:?}");
     assert!(String::from_utf8_lossy(&out.stderr).contains("warning: mode"));
 }
+
+/// The core defect on a 3×3 pencil: the massless direction (0, c, s) is a combination of
+/// two coordinates that each have diagonal mass, so the old diagonal split found no
+/// massless coordinate and M was singular ("not positive definite"). In the basis
+/// e1, (0, c, −s), (0, s, c) K is diag(1, 4, 100) and M diag(1, 1, 0): ω² = 1 and 4
+/// exactly, the third direction condensed out.
+#[test]
+fn pencil_with_a_massless_combination_of_massive_coordinates_is_condensed() {
+    let (c, s) = (0.6f64, 0.8f64);
+    // columns of Q: e1, (0, c, -s), (0, s, c); A = Q diag(d) Qᵀ
+    let q = [[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]];
+    let form = |d: [f64; 3]| {
+        let mut a = vec![0.0; 9];
+        for i in 0..3 {
+            for j in 0..3 {
+                a[i * 3 + j] = (0..3).map(|k| q[i][k] * d[k] * q[j][k]).sum();
+            }
+        }
+        a
+    };
+    let (k, m) = (form([1.0, 4.0, 100.0]), form([1.0, 1.0, 0.0]));
+    assert!(
+        m[4] > 0.3 && m[8] > 0.3,
+        "every coordinate has diagonal mass"
+    );
+    let md = latdyn::solver::modes::solve_pencil(&k, &m, 3, 3).unwrap();
+    assert_eq!(md.frequencies_hz.len(), 2, "{:?}", md.frequencies_hz);
+    let tw = 2.0 * std::f64::consts::PI;
+    let lam: Vec<f64> = md.frequencies_hz.iter().map(|f| (f * tw).powi(2)).collect();
+    assert!(
+        (lam[0] - 1.0).abs() < 1e-12 && (lam[1] - 4.0).abs() < 1e-12,
+        "{lam:?}"
+    );
+    // the shapes carry no motion in the massless direction (0, s, c): K-orthogonal
+    // condensation of a K that is diagonal in that basis
+    for sh in &md.shapes {
+        assert!((s * sh[1] + c * sh[2]).abs() < 1e-12, "{sh:?}");
+    }
+}

@@ -251,6 +251,11 @@ fn scaled_tangent(model: &Model, s: &State, lambda: f64) -> (Vec<f64>, Vec<f64>)
 /// any real stiffness ratio after Jacobi scaling.
 const FREE_MOTION_TOL: f64 = 1e-8;
 
+/// Largest model (free coordinates) whose failed statics gets the dense free-motion /
+/// limit-point diagnosis (two n×n symmetric eigendecompositions); larger ones report the
+/// stall only.
+pub const MAX_DIAGNOSIS_DOFS: usize = 1500;
+
 /// The tangent at the last converged state is at a limit point when its smallest scaled
 /// eigenvalue fell below this fraction of the unloaded one: step halving stops within 1e-7
 /// of the load factor of a fold, where the eigenvalue ∝ √(λ_c − λ) is ~1e-3 of its
@@ -261,8 +266,8 @@ const LIMIT_SOFTENING: f64 = 0.05;
 /// tangent singular or indefinite at the last converged state). None if neither.
 fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
     let n = model.n_eq;
-    // dense diagnosis only up to a size whose eigendecomposition takes seconds
-    if n == 0 || n > 3000 {
+    // dense diagnosis only up to a size whose two eigendecompositions take seconds
+    if n == 0 || n > MAX_DIAGNOSIS_DOFS {
         return None;
     }
     let (k, d) = scaled_tangent(model, s, lambda);
@@ -342,7 +347,7 @@ fn describe(model: &Model, x: &[f64]) -> String {
         .map(|(i, v)| format!("{} {v:+.2}", names[*i]))
         .collect();
     let more = if comps.len() > 8 {
-        format!(" (+{} smaller)", comps.len() - 8)
+        format!(" (+{} more)", comps.len() - 8)
     } else {
         String::new()
     };
