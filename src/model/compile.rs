@@ -1350,6 +1350,10 @@ impl Compiler<'_> {
             let span = ss.span();
             let s = ss.get_ref();
             let name = self.name(&s.name, &format!("{f}.name"))?;
+            // a name every output format can hold (HDF5 link, CSV column), checked here
+            // so `check` rejects it rather than the writer after the run
+            crate::output::check_output_name(&name)
+                .map_err(|e| self.err(s.name.span(), format!("{f}.name"), e))?;
             if out.iter().any(|o| o.name == name) {
                 return Err(self.err(
                     s.name.span(),
