@@ -1154,10 +1154,11 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         failed,
         wall,
         threads,
-        c.output
-            .as_ref()
-            .map(|p| format!(", written to {}", p.display()))
-            .unwrap_or_default()
+        match (&c.output, &output_error) {
+            (Some(p), None) => format!(", written to {}", p.display()),
+            (Some(p), Some(_)) => format!(", writing {} failed", p.display()),
+            (None, _) => String::new(),
+        }
     );
     let flagged: Vec<usize> = outcomes
         .iter()

@@ -816,21 +816,37 @@ impl CampaignWriter {
     /// Write the whole file to the temporary path (closed and synced on return).
     fn write_hdf5(&self, status: &str) -> Result<(), OutputError> {
         let tmp = self.tmp_path.clone();
-        let h5 = |what: &str| {
+        let h5 = |what: &str| -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError> {
             let what = what.to_string();
             let path = tmp.clone();
-            move |e: rust_hdf5::Hdf5Error| OutputError::Hdf5 {
-                path,
-                what,
+            Box::new(move |e: rust_hdf5::Hdf5Error| OutputError::Hdf5 {
+                path: path.clone(),
+                what: what.clone(),
                 message: e.to_string(),
-            }
+            })
         };
-        let m = &self.meta;
-        let nv = self.n_variants;
         let file = H5File::options()
             .best_effort_locking()
             .create(&tmp)
             .map_err(h5("create"))?;
+        match self.write_objects(&file, status, &h5) {
+            Ok(()) => file.close().map_err(h5("close")),
+            Err(e) => {
+                // closed explicitly: dropping it would print rust-hdf5's own warning
+                // about a file that is removed anyway
+                let _ = file.close();
+                Err(e)
+            }
+        }
+    }
+
+    /// Every object of the file (see the layout in the module docs).
+    fn write_objects<E>(&self, file: &H5File, status: &str, h5: &E) -> Result<(), OutputError>
+    where
+        E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
+    {
+        let m = &self.meta;
+        let nv = self.n_variants;
 
         // Root attributes.
         file.set_attr_string("latdyn_version", env!("CARGO_PKG_VERSION"))
@@ -959,7 +975,6 @@ impl CampaignWriter {
             write_f64(&derived, name, &[nv], values).map_err(h5(&format!("/derived/{name}")))?;
         }
 
-        file.close().map_err(h5("close"))?;
         Ok(())
     }
 }
