@@ -758,7 +758,7 @@ fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> anyhow::Resu
 /// Where `run -o` puts its samples as they come: the campaign layout with one variant,
 /// or CSV. Both are rewritten atomically at most every [`RUN_FLUSH_S`] and at the end.
 enum RunSink {
-    H5(latdyn::output::CampaignWriter),
+    H5(Box<latdyn::output::CampaignWriter>),
     Csv {
         target: latdyn::output::OutputTarget,
         text: String,
@@ -781,7 +781,7 @@ impl RunSink {
             Ok(RunSink::Csv { target, text })
         } else {
             let w = latdyn::output::CampaignWriter::create_at(target, &single_meta(m, stage))?;
-            Ok(RunSink::H5(w))
+            Ok(RunSink::H5(Box::new(w)))
         }
     }
 
@@ -958,10 +958,7 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
         return Err(fail(EXIT_OUTPUT, format!("{e}{kept}")));
     }
     match err {
-        Some(e) if interrupted => Err(fail(
-            EXIT_INTERRUPTED,
-            format!("{}: {e}{written}", m.path),
-        )),
+        Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
         Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
         None => Ok(()),
     }

@@ -332,8 +332,11 @@ impl OutputTarget {
         }
         let lock_path = path.with_file_name(format!("{name}.lock"));
         for _ in 0..8 {
-            check_regular(&lock_path, &format!("the lock file {}", lock_path.display()))
-                .map_err(|m| err(io::ErrorKind::InvalidInput, m))?;
+            check_regular(
+                &lock_path,
+                &format!("the lock file {}", lock_path.display()),
+            )
+            .map_err(|m| err(io::ErrorKind::InvalidInput, m))?;
             let mut f = fs::OpenOptions::new()
                 .read(true)
                 .write(true)

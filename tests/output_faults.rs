@@ -248,7 +248,10 @@ fn sigterm_mid_run_keeps_the_samples_so_far_marked_interrupted() {
             continue;
         }
         let (status, state) = rust_summary(&path);
-        assert_eq!((status.as_str(), state.as_slice()), ("interrupted", &[4][..]));
+        assert_eq!(
+            (status.as_str(), state.as_slice()),
+            ("interrupted", &[4][..])
+        );
         if let Some(h) = h5py_summary(&path) {
             assert_eq!(h["status"], "interrupted");
             let finite = h["finite_samples"][0].as_u64().unwrap();
@@ -332,9 +335,16 @@ fn a_second_writer_is_refused_naming_the_first_and_the_first_campaign_survives()
     assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
     let (status, state) = rust_summary(&path);
     assert_eq!(status, "interrupted");
-    assert_eq!(state.len(), 2000, "the first campaign's file, not the second's");
+    assert_eq!(
+        state.len(),
+        2000,
+        "the first campaign's file, not the second's"
+    );
     if let Some(h) = h5py_summary(&path) {
-        assert!(h["command_line"].as_str().unwrap().contains("omega=1:5:2000"));
+        assert!(h["command_line"]
+            .as_str()
+            .unwrap()
+            .contains("omega=1:5:2000"));
     }
 }
 
@@ -490,7 +500,12 @@ fn symlinks_fifos_devices_and_directories_are_refused_for_every_format() {
             args.extend(["-o", s(path)]);
             let out = run_for(latdyn(&args), 30);
             let err = stderr(&out);
-            assert_eq!(out.status.code(), Some(2), "{verb} -o {}: {err}", path.display());
+            assert_eq!(
+                out.status.code(),
+                Some(2),
+                "{verb} -o {}: {err}",
+                path.display()
+            );
             assert!(err.contains(what), "{verb} -o {}: {err}", path.display());
         }
     }
@@ -512,7 +527,16 @@ fn symlinks_fifos_devices_and_directories_are_refused_for_every_format() {
 fn unwritable_sensor_names_are_rejected_by_check_with_their_location() {
     let dir = scratch("names");
     let base = std::fs::read_to_string(root().join("models/pendulum.toml")).unwrap();
-    for bad in ["a/b", "..", ".", "a\\u0000b", "tip.z", "a,b", " ", "tab\\tname"] {
+    for bad in [
+        "a/b",
+        "..",
+        ".",
+        "a\\u0000b",
+        "tip.z",
+        "a,b",
+        " ",
+        "tab\\tname",
+    ] {
         let text = base.replace("name = \"angle\"", &format!("name = \"{bad}\""));
         assert_ne!(text, base);
         let model = dir.join("bad_name.toml");
@@ -534,7 +558,12 @@ fn empty_string_lists_and_zero_variant_shards_are_readable_by_h5py() {
     let dir = scratch("empty_lists");
     let no_params = dir.join("no_params.h5");
     let out = run_for(
-        latdyn(&["run", "tests/models/no_parameters.toml", "-o", s(&no_params)]),
+        latdyn(&[
+            "run",
+            "tests/models/no_parameters.toml",
+            "-o",
+            s(&no_params),
+        ]),
         60,
     );
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
