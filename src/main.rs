@@ -780,7 +780,12 @@ impl RunSink {
             target.replace_with(text.as_bytes())?;
             Ok(RunSink::Csv { target, text })
         } else {
-            let w = latdyn::output::CampaignWriter::create_at(target, &single_meta(m, stage))?;
+            let mut w = latdyn::output::CampaignWriter::create_at(target, &single_meta(m, stage))?;
+            let running = latdyn::output::VariantStatus {
+                state: latdyn::output::VariantState::Running,
+                ..Default::default()
+            };
+            w.set_status(0, &running)?;
             Ok(RunSink::H5(Box::new(w)))
         }
     }

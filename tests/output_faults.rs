@@ -306,6 +306,39 @@ fn sigkill_mid_sweep_leaves_the_last_flush_valid_and_a_stale_lock_is_harmless() 
     assert_eq!(rust_summary(&path), ("complete".to_string(), vec![2, 2]));
 }
 
+/// `run -o` rewrites its file as samples come (at most every 2 s), so even SIGKILL, which
+/// no handler sees, leaves the samples of the last flush, not an empty file.
+#[test]
+fn sigkill_mid_run_keeps_the_periodic_flush() {
+    let dir = scratch("sigkill_run");
+    let path = dir.join("r.h5");
+    let child = spawn(latdyn(&[
+        "run",
+        "models/rotating_cantilever.toml",
+        "--set",
+        "t_end=200",
+        "-o",
+        s(&path),
+    ]));
+    // the first file (all NaN) comes at once; wait for a flush with samples in it
+    wait_until(30, "a periodic flush with samples", || {
+        path.exists()
+            && rust_hdf5::H5File::open(&path)
+                .ok()
+                .and_then(|f| f.dataset("sensors/tip_flap").ok())
+                .and_then(|d| d.read_raw::<f64>().ok())
+                .is_some_and(|x| x.get(1).is_some_and(|v| v.is_finite()))
+    });
+    signal(&child, "KILL");
+    let out = finish(child, 30);
+    assert_eq!(out.status.code(), None, "killed by a signal");
+    let (status, state) = rust_summary(&path);
+    assert_eq!((status.as_str(), state.as_slice()), ("running", &[1][..]));
+    if let Some(h) = h5py_summary(&path) {
+        assert!(h["finite_samples"][0].as_u64().unwrap() > 2, "{h}");
+    }
+}
+
 // ---------------------------------------------------------------- concurrent writers
 
 #[test]
