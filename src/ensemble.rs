@@ -478,6 +478,13 @@ pub fn run_to(
                 // samples go to the file when the variant ends (completed, failed or
                 // interrupted alike), so workers do not contend for the writer per sample
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    // fault injection for tests/output_faults.rs: a panic inside the
+                    // first variant's simulation (unset: nothing happens)
+                    if v == 0
+                        && std::env::var_os("LATDYN_FAULT_PANIC").is_some_and(|x| x == "variant")
+                    {
+                        panic!("injected panic in a variant (LATDYN_FAULT_PANIC=variant)");
+                    }
                     let sim = || dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {});
                     match &stage.make {
                         Some(make) => crate::assembly::with_evaluator(make(), sim),

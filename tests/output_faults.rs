@@ -665,6 +665,50 @@ fn a_sweep_whose_variants_all_fail_exits_3_and_the_file_counts_them() {
     }
 }
 
+/// A panic inside one variant's simulation is caught there: that variant is marked failed
+/// with the internal error, the others complete, the file is finished, the JSON summary
+/// comes, and the sweep exits 70 (a bug, whatever else happened).
+#[test]
+fn a_panicking_variant_is_marked_failed_the_others_complete_and_the_sweep_exits_70() {
+    let dir = scratch("variant_panic");
+    let path = dir.join("c.h5");
+    let mut c = latdyn(&[
+        "sweep",
+        "models/pendulum.toml",
+        "--vary",
+        "theta0=0.5:1:3",
+        "--set",
+        "t_end=0.01",
+        "--json",
+        "-o",
+        s(&path),
+    ]);
+    c.env("LATDYN_FAULT_PANIC", "variant");
+    let out = run_for(c, 60);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(70), "{err}");
+    assert!(
+        err.starts_with("error: internal error: injected panic in a variant")
+            && err.contains("internal error in variant(s) 0"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let st: Vec<&str> = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["status"].as_str().unwrap())
+        .collect();
+    assert_eq!(st, ["failed", "completed", "completed"]);
+    assert_eq!(rust_summary(&path), ("complete".to_string(), vec![3, 2, 2]));
+    if let Some(h) = h5py_summary(&path) {
+        assert!(h["messages"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("internal error: injected panic"));
+    }
+}
+
 #[test]
 fn panics_become_one_clean_line_and_exit_70() {
     for (site, args) in [
