@@ -9,7 +9,10 @@
 //! running it alone. Each finished variant's samples go into the campaign file, which is
 //! flushed (rewritten atomically) at most every 2 s and at the end; on Ctrl-C the
 //! variants in flight stop at their next output sample, their samples so far are kept,
-//! and the file is finished as "interrupted".
+//! and the file is finished as "interrupted". If the file cannot be written mid-campaign
+//! (disk full, directory removed), no new variant starts, the variants in flight stop at
+//! their next output sample, the last flushed file stays as it was, and the outcomes are
+//! still returned ([`run_to`]) so the caller can report them.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -24,7 +27,8 @@ use crate::joint::State;
 use crate::linalg::SparseLuSymbolic;
 use crate::model::{self, Model};
 use crate::output::{
-    CampaignMeta, CampaignWriter, OutputError, SensorMeta, VariantState, VariantStatus,
+    CampaignMeta, CampaignWriter, OutputError, OutputTarget, SensorMeta, VariantState,
+    VariantStatus,
 };
 use crate::sensors;
 use crate::solver::dynamics::StageTimes;
@@ -365,6 +369,17 @@ pub struct Outcome {
     pub warnings: Vec<String>,
     /// full histories, kept only when asked for (single runs)
     pub history: Option<dynamics::History>,
+    /// the variant ended in a panic (a bug in latdyn), caught and marked failed
+    pub panicked: bool,
+}
+
+/// Outcomes of a campaign run by [`run_to`], with the error that stopped its output.
+pub struct CampaignRun {
+    /// one per variant of this shard; variants never started (after an output error)
+    /// are [`VariantState::Pending`]
+    pub outcomes: Vec<Outcome>,
+    /// the campaign file could not be written mid-run (the last flush is what is on disk)
+    pub output_error: Option<OutputError>,
 }
 
 /// Compiled variants with their checked common layout.
@@ -375,6 +390,9 @@ pub struct Prepared {
     pub time: Vec<f64>,
     /// one symbolic LU analysis shared by all variants (they share the pattern)
     pub symbolic: Option<Arc<SparseLuSymbolic>>,
+    /// the model with the shared overrides, compiled only when this shard has no variant:
+    /// the campaign file still gets its parameter names, time grid and (empty) sensors
+    pub reference: Option<Model>,
 }
 
 /// Compile every variant (of this shard) and check they share topology and time grid.
@@ -393,14 +411,19 @@ pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
         sets.extend(c.variants[gi].iter().cloned());
         models.push(model::load(&c.model_path, &sets)?);
     }
-    let parameter_names: Vec<String> = match models.first() {
+    let reference = if models.is_empty() {
+        let mut sets = c.base.clone();
+        sets.extend(c.variants.first().into_iter().flatten().cloned());
+        Some(model::load(&c.model_path, &sets)?)
+    } else {
+        None
+    };
+    let layout = models.first().or(reference.as_ref());
+    let parameter_names: Vec<String> = match layout {
         Some(m) => m.params.iter().map(|(n, _)| n.clone()).collect(),
         None => Vec::new(),
     };
-    let time = models
-        .first()
-        .map(dynamics::output_times)
-        .unwrap_or_default();
+    let time = layout.map(dynamics::output_times).unwrap_or_default();
     if let Some(first) = models.first() {
         let sig = topology(first);
         for (m, &gi) in models.iter().zip(&global_index).skip(1) {
@@ -437,6 +460,7 @@ pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
         parameter_names,
         time,
         symbolic,
+        reference,
     })
 }
 
@@ -511,10 +535,32 @@ pub fn run_on(
     progress: &(dyn Fn(usize, usize) + Sync),
     stage: &Stage,
 ) -> Result<Vec<Outcome>, EnsembleError> {
+    let target = c.output.as_deref().map(OutputTarget::claim).transpose()?;
+    let r = run_to(c, p, stop, keep_history, progress, stage, target)?;
+    match r.output_error {
+        Some(e) => Err(e.into()),
+        None => Ok(r.outcomes),
+    }
+}
+
+/// [`run_on`] writing to `target` (claimed by the caller, before its preparations), for
+/// callers that report the outcomes even when the output failed mid-run: an error
+/// writing the file stops the campaign (no new variant starts, those in flight stop at
+/// their next output sample) and is returned beside the outcomes. Errors before any
+/// variant ran (the file cannot be created) are returned as `Err`.
+pub fn run_to(
+    c: &Campaign,
+    p: &Prepared,
+    stop: &AtomicBool,
+    keep_history: bool,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    stage: &Stage,
+    target: Option<OutputTarget>,
+) -> Result<CampaignRun, EnsembleError> {
     let nv = p.models.len();
-    let writer = match &c.output {
-        Some(path) => {
-            let first = p.models.first();
+    let writer = match target {
+        Some(target) => {
+            let first = p.models.first().or(p.reference.as_ref());
             let meta = CampaignMeta {
                 command_line: c.command_line.clone(),
                 model_path: c.model_path.display().to_string(),
@@ -550,18 +596,22 @@ pub fn run_on(
                     })
                     .unwrap_or_default(),
             };
-            Some(Mutex::new(CampaignWriter::create(path, &meta)?))
+            Some(Mutex::new(CampaignWriter::create_at(target, &meta)?))
         }
         None => None,
     };
     let done = std::sync::atomic::AtomicUsize::new(0);
     let last_flush = Mutex::new(Instant::now());
     let write_err: Mutex<Option<OutputError>> = Mutex::new(None);
+    let output_failed = AtomicBool::new(false);
     let record_err = |e: OutputError| {
         let mut g = write_err.lock().unwrap_or_else(|p| p.into_inner());
         if g.is_none() {
             *g = Some(e);
         }
+        // nothing more can reach the file: stop the variants in flight, start no more
+        output_failed.store(true, Ordering::SeqCst);
+        stop.store(true, Ordering::SeqCst);
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(c.threads.max(1))
@@ -572,6 +622,9 @@ pub fn run_on(
             .into_par_iter()
             .map(|v| {
                 let m = &p.models[v];
+                if output_failed.load(Ordering::SeqCst) {
+                    return not_run(c, p, v, keep_history);
+                }
                 let t0 = Instant::now();
                 if let Some(w) = &writer {
                     let st = VariantStatus {
@@ -589,6 +642,13 @@ pub fn run_on(
                 // samples go to the file when the variant ends (completed, failed or
                 // interrupted alike), so workers do not contend for the writer per sample
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    // fault injection for tests/output_faults.rs: a panic inside the
+                    // first variant's simulation (unset: nothing happens)
+                    if v == 0
+                        && std::env::var_os("LATDYN_FAULT_PANIC").is_some_and(|x| x == "variant")
+                    {
+                        panic!("injected panic in a variant (LATDYN_FAULT_PANIC=variant)");
+                    }
                     let sim = || dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {});
                     match &stage.make {
                         Some(make) => crate::assembly::with_evaluator(make(), sim),
@@ -596,6 +656,7 @@ pub fn run_on(
                     }
                 }));
                 let wall = t0.elapsed().as_secs_f64();
+                let mut panicked = None;
                 let (hist, mut stats, err) = match result {
                     Ok(r) => r,
                     Err(panic) => {
@@ -604,24 +665,31 @@ pub fn run_on(
                             .cloned()
                             .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                             .unwrap_or_else(|| "unknown".into());
+                        panicked = Some(format!(
+                            "internal error: {msg} (this is a bug in latdyn; please report it)"
+                        ));
                         (
-                            dynamics::History::default(),
+                            dynamics::History {
+                                t: Vec::new(),
+                                values: vec![Vec::new(); m.sensors.len()],
+                            },
                             dynamics::RunStats::default(),
-                            Some(DynamicsError::NoConvergence {
-                                t: f64::NAN,
-                                dt: f64::NAN,
-                                residual: f64::NAN,
-                                dof: format!("internal error: {msg}"),
-                            }),
+                            None,
                         )
                     }
                 };
-                let (state, message, t_fail) = match &err {
-                    None => (VariantState::Completed, String::new(), f64::NAN),
-                    Some(e @ DynamicsError::Interrupted { .. }) => {
-                        (VariantState::Interrupted, e.to_string(), e.time())
+                let (state, message, t_fail) = match (&err, &panicked) {
+                    (_, Some(msg)) => (VariantState::Failed, msg.clone(), f64::NAN),
+                    (None, None) => (VariantState::Completed, String::new(), f64::NAN),
+                    (Some(e @ DynamicsError::Interrupted { .. }), _) => {
+                        let msg = if output_failed.load(Ordering::SeqCst) {
+                            format!("{e} (stopped: the output file could not be written)")
+                        } else {
+                            e.to_string()
+                        };
+                        (VariantState::Interrupted, msg, e.time())
                     }
-                    Some(e) => (VariantState::Failed, e.to_string(), e.time()),
+                    (Some(e), _) => (VariantState::Failed, e.to_string(), e.time()),
                 };
                 let summaries = summarize(m, &hist);
                 let mut derived = Vec::new();
@@ -686,10 +754,12 @@ pub fn run_on(
                     energy_growth: stats.energy_growth,
                     warnings: stats.warning().into_iter().collect(),
                     history: keep_history.then_some(hist),
+                    panicked: panicked.is_some(),
                 }
             })
             .collect()
     });
+    let mut output_error = write_err.into_inner().unwrap_or_else(|p| p.into_inner());
     if let Some(w) = writer {
         let w = w.into_inner().unwrap_or_else(|p| p.into_inner());
         let status = if stop.load(Ordering::Relaxed) {
@@ -697,12 +767,42 @@ pub fn run_on(
         } else {
             "complete"
         };
-        w.finish(status)?;
+        // after an output error this last write usually fails too (the last good flush
+        // stays); the first error is the one to report
+        if let Err(e) = w.finish(status) {
+            output_error.get_or_insert(e);
+        }
     }
-    if let Some(e) = write_err.into_inner().unwrap_or_else(|p| p.into_inner()) {
-        return Err(e.into());
+    Ok(CampaignRun {
+        outcomes,
+        output_error,
+    })
+}
+
+/// The outcome of a variant not started because the output had already failed.
+fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool) -> Outcome {
+    let m = &p.models[v];
+    Outcome {
+        global_index: p.global_index[v],
+        parameters: c.variants[p.global_index[v]].clone(),
+        state: VariantState::Pending,
+        message: "not run: the output file could not be written".into(),
+        t_fail: f64::NAN,
+        steps: 0,
+        rejected_steps: 0,
+        newton_iterations: 0,
+        wall_s: 0.0,
+        times: StageTimes::default(),
+        sensors: summarize(m, &dynamics::History::default()),
+        derived: Vec::new(),
+        energy_growth: None,
+        warnings: Vec::new(),
+        history: keep_history.then(|| dynamics::History {
+            t: Vec::new(),
+            values: vec![Vec::new(); m.sensors.len()],
+        }),
+        panicked: false,
     }
-    Ok(outcomes)
 }
 
 fn summarize(m: &Model, h: &dynamics::History) -> Vec<SensorSummary> {

@@ -1,8 +1,11 @@
 //! The `latdyn` command line: one verb per analysis, all reading a model file.
 //!
-//! Every failure is reported as `error: <message>` on stderr with exit code 2 (clap's
-//! own usage errors use 2 as well), so scripts can tell model or usage errors from
-//! success.
+//! Every failure is reported once as `error: <message>` on stderr, with an exit code a
+//! script can trust (README "Exit codes"): 0 success; 2 model, input or usage error
+//! (clap's usage errors use 2 as well), an output path refused before the run included;
+//! 3 finished, but the run or some variant failed; 4 interrupted (SIGINT, SIGTERM,
+//! SIGHUP), the output file left valid and marked interrupted; 5 the output could not be
+//! written mid-run (the last valid flush is kept); 70 internal error (a panic: a bug).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -255,9 +258,98 @@ struct PlotArgs {
     json: bool,
 }
 
+/// Exit codes (README "Exit codes").
+const EXIT_USAGE: u8 = 2;
+const EXIT_FAILED: u8 = 3;
+const EXIT_INTERRUPTED: u8 = 4;
+const EXIT_OUTPUT: u8 = 5;
+const EXIT_INTERNAL: u8 = 70;
+
+/// An error with an exit code other than [`EXIT_USAGE`]; an empty message was already
+/// reported (the panic hook prints its own line).
+#[derive(Debug)]
+struct Fail {
+    code: u8,
+    message: String,
+}
+
+impl std::fmt::Display for Fail {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Fail {}
+
+fn fail(code: u8, message: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(Fail {
+        code,
+        message: message.into(),
+    })
+}
+
+/// The text of a panic payload (`panic!` gives a `&str` or a `String`).
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
+
+/// One clean line per panic instead of Rust's dump; `RUST_BACKTRACE=1` adds the trace.
+fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = panic_text(info.payload());
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}:{}", l.file(), l.line(), l.column()))
+            .unwrap_or_default();
+        let mut err = std::io::stderr().lock();
+        // a closed stderr must not turn the report into an abort
+        let _ = writeln!(
+            err,
+            "error: internal error: {msg}{at} (this is a bug in latdyn; please report it)"
+        );
+        if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
+            let _ = writeln!(err, "{}", std::backtrace::Backtrace::force_capture());
+        }
+    }));
+}
+
 fn main() -> ExitCode {
+    install_panic_hook();
     let cli = Cli::parse();
-    let result = match &cli.verb {
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        if injected_panic("main") {
+            panic!("injected panic (LATDYN_FAULT_PANIC=main)");
+        }
+        dispatch(&cli)
+    }));
+    match result {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(e)) => {
+            let code = e.downcast_ref::<Fail>().map_or(EXIT_USAGE, |f| f.code);
+            let text = error_chain(&e);
+            if !text.is_empty() {
+                let _ = writeln!(std::io::stderr(), "error: {text}");
+            }
+            ExitCode::from(code)
+        }
+        // the hook has printed the message and where
+        Err(_) => ExitCode::from(EXIT_INTERNAL),
+    }
+}
+
+/// Fault injection for tests/output_faults.rs: `LATDYN_FAULT_PANIC=main` panics before
+/// the verb runs, `=worker` in a sweep's worker thread after its first variant, so the
+/// tests see a real panic cross each boundary. Unset, nothing happens.
+fn injected_panic(site: &str) -> bool {
+    std::env::var_os("LATDYN_FAULT_PANIC").is_some_and(|v| v == site)
+}
+
+fn dispatch(cli: &Cli) -> anyhow::Result<()> {
+    match &cli.verb {
         Verb::Check(a) => check(a),
         Verb::Statics(a) => statics(a),
         Verb::Modes(a) => modes(a),
@@ -265,14 +357,30 @@ fn main() -> ExitCode {
         Verb::Sweep(a) => sweep(a),
         Verb::Plot(a) => plot(a),
         Verb::Bench(a) => bench(a),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {}", error_chain(&e));
-            ExitCode::from(2)
-        }
     }
+}
+
+/// Set on SIGINT, SIGTERM or SIGHUP (what a terminal, a scheduler or a closed session
+/// sends): runs and sweeps stop at their next output sample and finish their file as
+/// interrupted. A handler can be installed once per process; failing to install one
+/// (not possible on this platform) leaves the default behaviour.
+fn stop_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    let _ = ctrlc::set_handler(move || s.store(true, Ordering::SeqCst));
+    stop
+}
+
+/// Claim an output path before any simulation; a refusal is a usage error (exit 2).
+fn claim_output(path: &std::path::Path) -> anyhow::Result<latdyn::output::OutputTarget> {
+    latdyn::output::OutputTarget::claim(path).map_err(|e| anyhow!("{e}"))
+}
+
+fn is_csv(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
 }
 
 /// The speed-against-error suite (src/bench.rs); the report files are written even when
@@ -684,33 +792,157 @@ fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> anyhow::Resu
     }
 }
 
-fn run(args: &RunArgs) -> anyhow::Result<()> {
-    let m = args.model.load()?;
-    let (stage, _batcher) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
-    let t0 = std::time::Instant::now();
-    let simulate = || latdyn::solver::dynamics::run(&m, |_, _| {});
-    let (hist, stats, err) = match &stage.make {
-        Some(make) => latdyn::assembly::with_evaluator(make(), simulate),
-        None => simulate(),
-    };
-    let wall = t0.elapsed().as_secs_f64();
-    if let Some(path) = &args.output {
-        if path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
-        {
-            write_csv(&m, &hist, path)?;
+/// Where `run -o` puts its samples as they come: the campaign layout with one variant,
+/// or CSV. Both are rewritten atomically at most every [`RUN_FLUSH_S`] and at the end.
+enum RunSink {
+    H5(Box<latdyn::output::CampaignWriter>),
+    Csv {
+        target: latdyn::output::OutputTarget,
+        text: String,
+    },
+}
+
+/// Shortest time between two rewrites of the `run -o` file [s] (as a sweep).
+const RUN_FLUSH_S: f64 = 2.0;
+
+impl RunSink {
+    fn open(
+        m: &Model,
+        target: latdyn::output::OutputTarget,
+        stage: &latdyn::ensemble::Stage,
+    ) -> Result<RunSink, latdyn::output::OutputError> {
+        if is_csv(target.path()) {
+            let text = csv_header(m);
+            // written at once: the path is shown writable before the run
+            target.replace_with(text.as_bytes())?;
+            Ok(RunSink::Csv { target, text })
         } else {
-            write_single_h5(&m, &hist, &stats, err.as_ref(), wall, path, &stage)?;
+            let mut w = latdyn::output::CampaignWriter::create_at(target, &single_meta(m, stage))?;
+            let running = latdyn::output::VariantStatus {
+                state: latdyn::output::VariantState::Running,
+                ..Default::default()
+            };
+            w.set_status(0, &running)?;
+            Ok(RunSink::H5(Box::new(w)))
         }
     }
-    if let Some(e) = &err {
-        eprintln!("error: {}: {e}", m.path);
+
+    fn sample(
+        &mut self,
+        i: usize,
+        t: f64,
+        vals: &[Vec<f64>],
+    ) -> Result<(), latdyn::output::OutputError> {
+        match self {
+            RunSink::H5(w) => w.write_samples(0, i, vals),
+            RunSink::Csv { text, .. } => {
+                csv_row(text, t, vals);
+                Ok(())
+            }
+        }
+    }
+
+    fn flush(&mut self) -> Result<(), latdyn::output::OutputError> {
+        match self {
+            RunSink::H5(w) => w.flush(),
+            RunSink::Csv { target, text } => target.replace_with(text.as_bytes()),
+        }
+    }
+
+    fn finish(
+        self,
+        status: &latdyn::output::VariantStatus,
+    ) -> Result<(), latdyn::output::OutputError> {
+        use latdyn::output::VariantState;
+        match self {
+            RunSink::H5(mut w) => {
+                w.set_status(0, status)?;
+                w.finish(if status.state == VariantState::Interrupted {
+                    "interrupted"
+                } else {
+                    "complete"
+                })
+            }
+            RunSink::Csv { target, text } => target.replace_with(text.as_bytes()),
+        }
+    }
+}
+
+fn run(args: &RunArgs) -> anyhow::Result<()> {
+    use latdyn::output::{VariantState, VariantStatus};
+    use std::sync::atomic::Ordering;
+    let m = args.model.load()?;
+    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let (stage, _batcher) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
+    let mut sink = match target {
+        Some(t) => Some(RunSink::open(&m, t, &stage).map_err(|e| anyhow!("{e}"))?),
+        None => None,
+    };
+    let stop = stop_flag();
+    let mut out_err: Option<latdyn::output::OutputError> = None;
+    let mut n_samples = 0usize;
+    let mut last_flush = std::time::Instant::now();
+    let t0 = std::time::Instant::now();
+    let (hist, stats, err) = {
+        let on_sample = |t: f64, vals: &[Vec<f64>]| {
+            let i = n_samples;
+            n_samples += 1;
+            let (Some(s), None) = (sink.as_mut(), out_err.as_ref()) else {
+                return;
+            };
+            let mut r = s.sample(i, t, vals);
+            if r.is_ok() && last_flush.elapsed().as_secs_f64() >= RUN_FLUSH_S {
+                r = s.flush();
+                last_flush = std::time::Instant::now();
+            }
+            if let Err(e) = r {
+                // the file keeps its last flush; stop rather than compute what cannot be kept
+                out_err = Some(e);
+                stop.store(true, Ordering::SeqCst);
+            }
+        };
+        let simulate = || latdyn::solver::dynamics::run_until(&m, Some(stop.as_ref()), on_sample);
+        match &stage.make {
+            Some(make) => latdyn::assembly::with_evaluator(make(), simulate),
+            None => simulate(),
+        }
+    };
+    let wall = t0.elapsed().as_secs_f64();
+    let interrupted = matches!(
+        err,
+        Some(latdyn::solver::dynamics::DynamicsError::Interrupted { .. })
+    );
+    if let Some(s) = sink {
+        let status = VariantStatus {
+            state: match &err {
+                None => VariantState::Completed,
+                Some(_) if interrupted => VariantState::Interrupted,
+                Some(_) => VariantState::Failed,
+            },
+            message: err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+            t_fail: err.as_ref().map(|e| e.time()).unwrap_or(f64::NAN),
+            steps: stats.steps as u64,
+            rejected_steps: stats.rejected_steps as u64,
+            wall_s: wall,
+            energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+        };
+        // after an output error the last good flush is what stays
+        if out_err.is_none() {
+            if let Err(e) = s.finish(&status) {
+                out_err = Some(e);
+            }
+        }
     }
     let warnings: Vec<String> = stats.warning().into_iter().collect();
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
+    let (status, message) = match (&out_err, &err) {
+        (Some(e), _) => ("output_failed", e.to_string()),
+        (None, Some(e)) if interrupted => ("interrupted", e.to_string()),
+        (None, Some(e)) => ("failed", e.to_string()),
+        (None, None) => ("completed", String::new()),
+    };
     if args.model.json {
         let mut sensors = serde_json::Map::new();
         for (k, sn) in m.sensors.iter().enumerate() {
@@ -741,8 +973,8 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "energy_growth": stats.energy_growth,
             "warnings": warnings,
             "wall_s": wall,
-            "status": if err.is_some() { "failed" } else { "completed" },
-            "message": err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+            "status": status,
+            "message": message,
             "backend": stage.backend,
             "precision": stage.precision,
             "adapter": stage.adapter,
@@ -754,24 +986,30 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             m.name, stats.steps, stats.rejected_steps, stats.newton_iterations, wall
         );
     }
+    let written = args
+        .output
+        .as_ref()
+        .map(|p| format!("; {} holds the samples so far", p.display()))
+        .unwrap_or_default();
+    if let Some(e) = out_err {
+        let kept = args
+            .output
+            .as_ref()
+            .map(|p| format!(" (the run stopped; {} keeps its last flush)", p.display()))
+            .unwrap_or_default();
+        return Err(fail(EXIT_OUTPUT, format!("{e}{kept}")));
+    }
     match err {
-        Some(e) => Err(anyhow!("{}: {e}", m.path)),
+        Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
+        Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
         None => Ok(()),
     }
 }
 
-/// One run in the campaign layout (one variant).
-fn write_single_h5(
-    m: &Model,
-    hist: &latdyn::solver::dynamics::History,
-    stats: &latdyn::solver::dynamics::RunStats,
-    err: Option<&latdyn::solver::dynamics::DynamicsError>,
-    wall: f64,
-    path: &std::path::Path,
-    stage: &latdyn::ensemble::Stage,
-) -> anyhow::Result<()> {
+/// The campaign layout of a single run (one variant, the model's parameters).
+fn single_meta(m: &Model, stage: &latdyn::ensemble::Stage) -> latdyn::output::CampaignMeta {
     use latdyn::output::*;
-    let meta = CampaignMeta {
+    CampaignMeta {
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
         model_path: m.path.clone(),
         model_source: m.source.clone(),
@@ -798,37 +1036,13 @@ fn write_single_h5(
                     .collect(),
             })
             .collect(),
-    };
-    let mut w = CampaignWriter::create(path, &meta)?;
-    for i in 0..hist.t.len() {
-        let vals: Vec<Vec<f64>> = hist.values.iter().map(|v| v[i].clone()).collect();
-        w.write_samples(0, i, &vals)?;
     }
-    w.set_status(
-        0,
-        &VariantStatus {
-            state: if err.is_some() {
-                VariantState::Failed
-            } else {
-                VariantState::Completed
-            },
-            message: err.map(|e| e.to_string()).unwrap_or_default(),
-            t_fail: err.map(|e| e.time()).unwrap_or(f64::NAN),
-            steps: stats.steps as u64,
-            rejected_steps: stats.rejected_steps as u64,
-            wall_s: wall,
-            energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
-        },
-    )?;
-    w.finish("complete")?;
-    Ok(())
 }
 
 fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     use latdyn::ensemble::{self, Campaign};
     use std::io::IsTerminal;
-    use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Arc;
+    use std::sync::atomic::Ordering;
     let variants = ensemble::variants(
         &args.model.model,
         &args.model.set,
@@ -862,6 +1076,8 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         .unwrap_or(1);
     // the element count decides `auto`; the model is compiled again per variant later
     let n_elem = args.model.load()?.elements.len();
+    // before compiling the variants: a refused path costs nothing
+    let target = args.output.as_deref().map(claim_output).transpose()?;
     let n_var = variants.len().max(1);
     let (stage, batcher) = choose_stage(&args.backend, n_var, n_elem, cores)?;
     let threads = args.threads.unwrap_or(if stage.make.is_some() {
@@ -882,13 +1098,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
     };
     let prepared = ensemble::prepare(&c)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        // a second Ctrl-C falls through to the default handler only after the first
-        // has been seen; ignore registration failure (not a terminal, tests)
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
-    }
+    let stop = stop_flag();
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(prepared.models.len() as u64);
         b.set_style(
@@ -902,7 +1112,10 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         None
     };
     let t0 = std::time::Instant::now();
-    let outcomes = ensemble::run_on(
+    let ensemble::CampaignRun {
+        outcomes,
+        output_error,
+    } = ensemble::run_to(
         &c,
         &prepared,
         &stop,
@@ -911,9 +1124,14 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             if let Some(b) = &bar {
                 b.set_position(done as u64);
             }
+            if injected_panic("worker") {
+                panic!("injected panic in a sweep worker (LATDYN_FAULT_PANIC=worker)");
+            }
         },
         &stage,
-    )?;
+        target,
+    )
+    .map_err(|e| anyhow!("{e}"))?;
     if let Some(b) = &batcher {
         let st = b.stats();
         eprintln!(
@@ -934,6 +1152,28 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         .iter()
         .filter(|o| o.state != latdyn::output::VariantState::Completed)
         .count();
+    let n_failed = outcomes
+        .iter()
+        .filter(|o| o.state == latdyn::output::VariantState::Failed)
+        .count();
+    let interrupted = stop.load(Ordering::SeqCst) && output_error.is_none();
+    let (status, message) = match &output_error {
+        Some(e) => (
+            "output_failed",
+            format!(
+                "{e}; the campaign stopped (variants not run are marked not_run){}",
+                c.output
+                    .as_ref()
+                    .map(|p| format!(", {} keeps its last flush", p.display()))
+                    .unwrap_or_default()
+            ),
+        ),
+        None if interrupted => (
+            "interrupted",
+            "interrupted by a signal; the campaign file is marked interrupted".to_string(),
+        ),
+        None => ("complete", String::new()),
+    };
     eprintln!(
         "sweep {}: {} variants ({} not completed) in {:.2} s on {} threads{}",
         c.model_path.display(),
@@ -941,10 +1181,11 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         failed,
         wall,
         threads,
-        c.output
-            .as_ref()
-            .map(|p| format!(", written to {}", p.display()))
-            .unwrap_or_default()
+        match (&c.output, &output_error) {
+            (Some(p), None) => format!(", written to {}", p.display()),
+            (Some(p), Some(_)) => format!(", writing {} failed", p.display()),
+            (None, _) => String::new(),
+        }
     );
     let flagged: Vec<usize> = outcomes
         .iter()
@@ -1000,6 +1241,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "status": match o.state {
                         latdyn::output::VariantState::Completed => "completed",
                         latdyn::output::VariantState::Interrupted => "interrupted",
+                        latdyn::output::VariantState::Pending => "not_run",
                         _ => "failed",
                     },
                     "message": o.message,
@@ -1014,6 +1256,9 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             })
             .collect();
         let v = serde_json::json!({
+            "status": status,
+            "message": message,
+            "failed_variants": n_failed,
             "variants": vs,
             "wall_s": wall,
             "backend": stage.backend,
@@ -1023,20 +1268,46 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         });
         emit(&format!("{v}\n"))?;
     }
-    if stop.load(Ordering::Relaxed) {
-        return Err(anyhow!(
-            "interrupted: the campaign file is marked interrupted"
+    let panicked: Vec<String> = outcomes
+        .iter()
+        .filter(|o| o.panicked)
+        .map(|o| o.global_index.to_string())
+        .collect();
+    if !panicked.is_empty() {
+        // each panic printed its own line (the hook); this one says which variants
+        return Err(fail(
+            EXIT_INTERNAL,
+            format!(
+                "internal error in variant(s) {} (marked failed; this is a bug in latdyn; \
+                 please report it)",
+                panicked.join(", ")
+            ),
+        ));
+    }
+    if output_error.is_some() {
+        return Err(fail(EXIT_OUTPUT, message));
+    }
+    if interrupted {
+        return Err(fail(EXIT_INTERRUPTED, message));
+    }
+    if n_failed > 0 {
+        return Err(fail(
+            EXIT_FAILED,
+            format!(
+                "{n_failed} of {} variants failed (see their status and message{})",
+                outcomes.len(),
+                c.output
+                    .as_ref()
+                    .map(|p| format!(" in {}", p.display()))
+                    .unwrap_or_default()
+            ),
         ));
     }
     Ok(())
 }
 
-/// Sensor histories as CSV: time, then every sensor component.
-fn write_csv(
-    m: &Model,
-    hist: &latdyn::solver::dynamics::History,
-    path: &std::path::Path,
-) -> anyhow::Result<()> {
+/// CSV of the sensor histories: the header (time, then every sensor component).
+fn csv_header(m: &Model) -> String {
     let mut s = String::from("t");
     for sn in &m.sensors {
         for c in latdyn::sensors::components(&sn.kind) {
@@ -1044,16 +1315,19 @@ fn write_csv(
         }
     }
     s.push('\n');
-    for (i, t) in hist.t.iter().enumerate() {
-        s += &format!("{t}");
-        for v in &hist.values {
-            for x in &v[i] {
-                s += &format!(",{x}");
-            }
+    s
+}
+
+/// One CSV row: the time, then every sensor component.
+fn csv_row(s: &mut String, t: f64, vals: &[Vec<f64>]) {
+    use std::fmt::Write as _;
+    let _ = write!(s, "{t}");
+    for v in vals {
+        for x in v {
+            let _ = write!(s, ",{x}");
         }
-        s.push('\n');
     }
-    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+    s.push('\n');
 }
 
 /// Solver threads of a GPU sweep (variants in flight, each waiting on the batcher).

@@ -13,6 +13,8 @@
 //!                                 adapter (str; GPU adapter, empty on the CPU)
 //!                                 threads (int64), complete (int64, 0/1),
 //!                                 status (str: "running" | "complete" | "interrupted"),
+//!                                 failed_variants (int64: variants in state failed;
+//!                                 "complete" only says the campaign ran to its end),
 //!                                 format = "latdyn-campaign", format_version = 1 (int64)
 //! /model/source            str (scalar): the model file text
 //! /model/path              str (scalar): the model file path as given
@@ -59,6 +61,24 @@
 //! A writer dropped without [`CampaignWriter::finish`] leaves the last flushed file
 //! (status "running"). A reader that has the file open during a flush keeps seeing the
 //! old version (the rename replaces the directory entry, not the data).
+//!
+//! # The output path
+//!
+//! [`OutputTarget::claim`] is the one gate for every output file (HDF5 and CSV), taken
+//! before any simulation:
+//! - an existing target must be a regular file: a directory, FIFO, device or socket is
+//!   refused;
+//! - a symbolic link is refused, at the target and at its lock file: latdyn neither
+//!   writes through a symlink nor replaces one (give the real path);
+//! - the directory must exist and be writable: a temporary file is created there;
+//! - an exclusive lock (`File::try_lock`) on the sidecar `<path>.lock`, held until the
+//!   file is finished, so two processes cannot write one file: the second is refused,
+//!   naming the first (its pid and command line are in the lock file), and the first's
+//!   file is untouched. The lock file is removed when the writer ends normally; one left
+//!   by a killed process is harmless (the kernel released its lock).
+//!
+//! Every write is a complete file at a temporary path in the same directory, renamed
+//! over the target (atomic on POSIX file systems).
 
 use std::fs;
 use std::io;
@@ -189,7 +209,7 @@ impl VariantState {
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     /// The output file (or its temporary sibling) cannot be created, written or renamed.
-    #[error("cannot write HDF5 output {}: {source}", path.display())]
+    #[error("cannot write output {}: {source}", path.display())]
     Io { path: PathBuf, source: io::Error },
     /// The HDF5 library refused an operation.
     #[error("HDF5 error writing {} ({what}): {message}", path.display())]
@@ -201,6 +221,259 @@ pub enum OutputError {
     /// Inconsistent campaign description, or an argument out of range (a caller bug).
     #[error("HDF5 output: {0}")]
     Invalid(String),
+}
+
+/// An output path claimed for writing: validated, its directory shown writable, and
+/// locked against other processes (see the [module docs](self#the-output-path)). The
+/// lock is held until this value is dropped.
+#[derive(Debug)]
+pub struct OutputTarget {
+    path: PathBuf,
+    lock_path: PathBuf,
+    lock: Option<fs::File>,
+}
+
+/// What is at `p`, refusing anything but a regular file or nothing.
+fn check_regular(p: &Path, what: &str) -> Result<(), String> {
+    match fs::symlink_metadata(p) {
+        Ok(m) => {
+            let ft = m.file_type();
+            let kind = if ft.is_symlink() {
+                Some(
+                    "a symbolic link (latdyn does not write through or replace symlinks; \
+                     give the real path)",
+                )
+            } else if ft.is_dir() {
+                Some("a directory")
+            } else if ft.is_file() {
+                None
+            } else {
+                #[cfg(unix)]
+                {
+                    use std::os::unix::fs::FileTypeExt;
+                    Some(if ft.is_fifo() {
+                        "a FIFO"
+                    } else if ft.is_char_device() || ft.is_block_device() {
+                        "a device"
+                    } else if ft.is_socket() {
+                        "a socket"
+                    } else {
+                        "not a regular file"
+                    })
+                }
+                #[cfg(not(unix))]
+                Some("not a regular file")
+            };
+            match kind {
+                Some(k) => Err(format!("{what} is {k}, not a regular file")),
+                None => Ok(()),
+            }
+        }
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(format!("{what}: {e}")),
+    }
+}
+
+/// Both handles name the same file (the lock file was not replaced in between).
+fn same_file(a: &fs::Metadata, b: &fs::Metadata) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        a.dev() == b.dev() && a.ino() == b.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (a, b);
+        true
+    }
+}
+
+impl OutputTarget {
+    /// Validate `path`, check its directory is writable (a temporary file is created and
+    /// removed there) and take the exclusive lock `<path>.lock`. Every refusal is an
+    /// [`OutputError::Io`] whose message says why; nothing at `path` is touched.
+    pub fn claim(path: &Path) -> Result<OutputTarget, OutputError> {
+        let err = |kind: io::ErrorKind, msg: String| OutputError::Io {
+            path: path.to_path_buf(),
+            source: io::Error::new(kind, msg),
+        };
+        let io_err = |source: io::Error| OutputError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let name = match path.file_name() {
+            Some(n) => n.to_string_lossy().into_owned(),
+            None => {
+                return Err(err(
+                    io::ErrorKind::InvalidInput,
+                    "the path names no file".into(),
+                ))
+            }
+        };
+        check_regular(path, "it").map_err(|m| err(io::ErrorKind::InvalidInput, m))?;
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        match fs::metadata(dir) {
+            Ok(m) if m.is_dir() => {}
+            Ok(_) => {
+                return Err(err(
+                    io::ErrorKind::NotADirectory,
+                    format!("{} is not a directory", dir.display()),
+                ))
+            }
+            Err(e) => {
+                return Err(err(
+                    e.kind(),
+                    format!("its directory {}: {e}", dir.display()),
+                ))
+            }
+        }
+        let lock_path = path.with_file_name(format!("{name}.lock"));
+        for _ in 0..8 {
+            check_regular(
+                &lock_path,
+                &format!("the lock file {}", lock_path.display()),
+            )
+            .map_err(|m| err(io::ErrorKind::InvalidInput, m))?;
+            let mut f = fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .open(&lock_path)
+                .map_err(io_err)?;
+            match f.try_lock() {
+                Ok(()) => {}
+                Err(fs::TryLockError::WouldBlock) => {
+                    use io::Read;
+                    let mut holder = String::new();
+                    let _ = f.read_to_string(&mut holder);
+                    let holder = holder.trim();
+                    return Err(err(
+                        io::ErrorKind::ResourceBusy,
+                        format!(
+                            "another latdyn process is writing it ({}); wait for it to end or \
+                             choose another path (lock file {})",
+                            if holder.is_empty() {
+                                "pid unknown"
+                            } else {
+                                holder
+                            },
+                            lock_path.display()
+                        ),
+                    ));
+                }
+                Err(fs::TryLockError::Error(e)) => return Err(io_err(e)),
+            }
+            // A writer that just finished removes its lock file before unlocking: a lock
+            // on that removed file guards nothing, so take the lock file anew.
+            let current = fs::symlink_metadata(&lock_path).ok();
+            let mine = f.metadata().ok();
+            if !matches!((current, mine), (Some(a), Some(b)) if same_file(&a, &b)) {
+                continue;
+            }
+            {
+                use io::Write;
+                let cmd: Vec<String> = std::env::args().collect();
+                let _ = f.set_len(0);
+                let _ = writeln!(f, "pid {}: {}", std::process::id(), cmd.join(" "));
+            }
+            let target = OutputTarget {
+                path: path.to_path_buf(),
+                lock_path,
+                lock: Some(f),
+            };
+            // Show the directory writable before any work: the way every write goes.
+            let probe = target.tmp_path();
+            let _ = fs::remove_file(&probe);
+            fs::File::create_new(&probe).map_err(io_err)?;
+            let _ = fs::remove_file(&probe);
+            return Ok(target);
+        }
+        Err(err(
+            io::ErrorKind::ResourceBusy,
+            format!(
+                "the lock file {} keeps being replaced by other processes",
+                lock_path.display()
+            ),
+        ))
+    }
+
+    /// The claimed path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The temporary sibling every write goes through (`.<name>.<pid>.tmp`).
+    fn tmp_path(&self) -> PathBuf {
+        let name = self
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        self.path
+            .with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+    }
+
+    /// Replace the file with `bytes`: written to the temporary sibling, `fsync`ed,
+    /// renamed over the target, directory `fsync`ed. On failure the previous file stays.
+    pub fn replace_with(&self, bytes: &[u8]) -> Result<(), OutputError> {
+        let tmp = self.tmp_path();
+        let r = (|| {
+            use io::Write;
+            let _ = fs::remove_file(&tmp);
+            let mut f = fs::File::create_new(&tmp)?;
+            f.write_all(bytes)?;
+            f.sync_all()
+        })();
+        if let Err(source) = r {
+            let _ = fs::remove_file(&tmp);
+            return Err(OutputError::Io {
+                path: self.path.clone(),
+                source,
+            });
+        }
+        self.commit(&tmp)
+    }
+
+    /// Rename the finished temporary file over the target and make the rename durable.
+    fn commit(&self, tmp: &Path) -> Result<(), OutputError> {
+        // the target may have been replaced by something else since the claim
+        check_regular(&self.path, "it").map_err(|m| OutputError::Io {
+            path: self.path.clone(),
+            source: io::Error::new(io::ErrorKind::InvalidInput, m),
+        })?;
+        fs::rename(tmp, &self.path).map_err(|source| {
+            let _ = fs::remove_file(tmp);
+            OutputError::Io {
+                path: self.path.clone(),
+                source,
+            }
+        })?;
+        if let Some(dir) = self.path.parent() {
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            if let Ok(d) = fs::File::open(dir) {
+                let _ = d.sync_all();
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for OutputTarget {
+    fn drop(&mut self) {
+        if let Some(f) = self.lock.take() {
+            // removed while still locked: see `claim` for why that order is safe
+            let _ = fs::remove_file(&self.lock_path);
+            let _ = f.unlock();
+        }
+    }
 }
 
 /// Samples of one sensor for all variants, with a cache of its compressed chunks.
@@ -226,6 +499,7 @@ struct SensorBuf {
 pub struct CampaignWriter {
     path: PathBuf,
     tmp_path: PathBuf,
+    target: OutputTarget,
     meta: CampaignMeta,
     n_variants: usize,
     n_time: usize,
@@ -239,20 +513,51 @@ pub struct CampaignWriter {
     dirty: bool,
 }
 
-fn check_name(kind: &str, name: &str) -> Result<(), OutputError> {
-    if name.is_empty() || name == "." || name == ".." || name.contains('/') {
-        return Err(OutputError::Invalid(format!(
-            "{kind} name {name:?} is not a valid HDF5 link name (empty, '.', '..' or contains '/')"
-        )));
+/// Whether `name` can name a sensor or derived quantity in every output format: an HDF5
+/// link (`/sensors/<NAME>`: no '/', not empty; NUL would truncate the link and make
+/// two sensors one), a CSV column `NAME.COMPONENT` (no ',', '"', '.', line breaks) and
+/// the `NAME.COMPONENT` arguments of `sweep --frequency` and `plot`. The model compiler
+/// calls this for sensor names, so `check` rejects what the writers could not write.
+pub fn check_output_name(name: &str) -> Result<(), String> {
+    let bad = if name.trim().is_empty() {
+        Some("it is empty")
+    } else if name.contains('/') {
+        Some("it contains '/' (an HDF5 path separator)")
+    } else if name.contains('.') {
+        Some("it contains '.' (it separates a sensor from its component: NAME.COMPONENT)")
+    } else if name.contains(',') || name.contains('"') {
+        Some("it contains ',' or '\"' (CSV column names)")
+    } else if name.chars().any(char::is_control) {
+        Some("it contains a control character (NUL, tab, line break, ...)")
+    } else if name.trim() != name {
+        Some("it starts or ends with white space")
+    } else {
+        None
+    };
+    match bad {
+        Some(why) => Err(format!(
+            "name {name:?} cannot be written to the output files: {why}; use letters, \
+             digits, '_' or '-'"
+        )),
+        None => Ok(()),
     }
-    Ok(())
+}
+
+fn check_name(kind: &str, name: &str) -> Result<(), OutputError> {
+    check_output_name(name).map_err(|e| OutputError::Invalid(format!("{kind} {e}")))
 }
 
 impl CampaignWriter {
-    /// Validate `meta`, then write the initial file (all samples NaN, every variant
-    /// pending, status "running") to `path`, replacing any file there. Fails at once
-    /// with [`OutputError::Io`] if the path cannot be written.
+    /// Claim `path` ([`OutputTarget::claim`]: a regular file or nothing, no symlink, not
+    /// locked by another process), validate `meta`, then write the initial file (all
+    /// samples NaN, every variant pending, status "running"), replacing any file there.
+    /// Fails at once with [`OutputError::Io`] if the path is refused or cannot be written.
     pub fn create(path: &Path, meta: &CampaignMeta) -> Result<Self, OutputError> {
+        Self::create_at(OutputTarget::claim(path)?, meta)
+    }
+
+    /// [`create`](Self::create) on a path claimed earlier (before slow preparations).
+    pub fn create_at(target: OutputTarget, meta: &CampaignMeta) -> Result<Self, OutputError> {
         let n_variants = meta.parameter_values.len();
         let n_time = meta.time.len();
         for (v, row) in meta.parameter_values.iter().enumerate() {
@@ -311,25 +616,12 @@ impl CampaignWriter {
                 dirty: vec![false; n_chunks],
             });
         }
-        let path = path.to_path_buf();
-        let file_name = path
-            .file_name()
-            .ok_or_else(|| OutputError::Io {
-                path: path.clone(),
-                source: io::Error::new(io::ErrorKind::InvalidInput, "path has no file name"),
-            })?
-            .to_string_lossy()
-            .into_owned();
-        if path.is_dir() {
-            return Err(OutputError::Io {
-                path,
-                source: io::Error::new(io::ErrorKind::IsADirectory, "is a directory"),
-            });
-        }
-        let tmp_path = path.with_file_name(format!(".{file_name}.{}.tmp", std::process::id()));
+        let path = target.path().to_path_buf();
+        let tmp_path = target.tmp_path();
         let mut w = CampaignWriter {
             path,
             tmp_path,
+            target,
             meta: CampaignMeta {
                 global_index: global_index.clone(),
                 ..meta.clone()
@@ -513,49 +805,51 @@ impl CampaignWriter {
             move |source| OutputError::Io { path, source }
         };
         // Probe with std first: a plain io::Error is the clearest message for a missing
-        // directory or a permission problem.
-        fs::File::create(&self.tmp_path).map_err(io_err(&self.path))?;
+        // directory, a full disk or a permission problem.
+        let _ = fs::remove_file(&self.tmp_path);
+        fs::File::create_new(&self.tmp_path).map_err(io_err(&self.path))?;
         let result = self.write_hdf5(status);
         if let Err(e) = result {
             let _ = fs::remove_file(&self.tmp_path);
             return Err(e);
         }
-        fs::rename(&self.tmp_path, &self.path).map_err(|e| {
-            let _ = fs::remove_file(&self.tmp_path);
-            io_err(&self.path)(e)
-        })?;
-        // Make the rename itself durable.
-        if let Some(dir) = self.path.parent() {
-            let dir = if dir.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                dir
-            };
-            if let Ok(d) = fs::File::open(dir) {
-                let _ = d.sync_all();
-            }
-        }
-        Ok(())
+        self.target.commit(&self.tmp_path)
     }
 
     /// Write the whole file to the temporary path (closed and synced on return).
     fn write_hdf5(&self, status: &str) -> Result<(), OutputError> {
         let tmp = self.tmp_path.clone();
-        let h5 = |what: &str| {
+        let h5 = |what: &str| -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError> {
             let what = what.to_string();
             let path = tmp.clone();
-            move |e: rust_hdf5::Hdf5Error| OutputError::Hdf5 {
-                path,
-                what,
+            Box::new(move |e: rust_hdf5::Hdf5Error| OutputError::Hdf5 {
+                path: path.clone(),
+                what: what.clone(),
                 message: e.to_string(),
-            }
+            })
         };
-        let m = &self.meta;
-        let nv = self.n_variants;
         let file = H5File::options()
             .best_effort_locking()
             .create(&tmp)
             .map_err(h5("create"))?;
+        match self.write_objects(&file, status, &h5) {
+            Ok(()) => file.close().map_err(h5("close")),
+            Err(e) => {
+                // closed explicitly: dropping it would print rust-hdf5's own warning
+                // about a file that is removed anyway
+                let _ = file.close();
+                Err(e)
+            }
+        }
+    }
+
+    /// Every object of the file (see the layout in the module docs).
+    fn write_objects<E>(&self, file: &H5File, status: &str, h5: &E) -> Result<(), OutputError>
+    where
+        E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
+    {
+        let m = &self.meta;
+        let nv = self.n_variants;
 
         // Root attributes.
         file.set_attr_string("latdyn_version", env!("CARGO_PKG_VERSION"))
@@ -573,6 +867,13 @@ impl CampaignWriter {
         file.set_attr_numeric("complete", &i64::from(status == "complete"))
             .map_err(h5("root attrs"))?;
         file.set_attr_string("status", status)
+            .map_err(h5("root attrs"))?;
+        let failed = self
+            .status
+            .iter()
+            .filter(|s| s.state == VariantState::Failed)
+            .count();
+        file.set_attr_numeric("failed_variants", &(failed as i64))
             .map_err(h5("root attrs"))?;
         file.set_attr_string("format", "latdyn-campaign")
             .map_err(h5("root attrs"))?;
@@ -677,7 +978,6 @@ impl CampaignWriter {
             write_f64(&derived, name, &[nv], values).map_err(h5(&format!("/derived/{name}")))?;
         }
 
-        file.close().map_err(h5("close"))?;
         Ok(())
     }
 }
@@ -703,8 +1003,20 @@ fn write_scalar_string(g: &H5Group, name: &str, value: &str) -> H5Result<()> {
     ds.write_raw_bytes(&bytes)
 }
 
-/// A 1-D variable-length UTF-8 string dataset.
+/// A 1-D variable-length UTF-8 string dataset. An empty list gets a dataset without
+/// storage: `write_vlen_strings` would give it a zero-byte data block, which the HDF5
+/// library (h5py) refuses to open ("invalid dataset size").
 fn write_strings(g: &H5Group, name: &str, values: &[&str]) -> H5Result<()> {
+    if values.is_empty() {
+        g.new_dataset::<u8>()
+            .datatype(DatatypeMessage::VarLenString {
+                padding: 0,
+                charset: 1, // UTF-8
+            })
+            .shape([0usize])
+            .create(name)?;
+        return Ok(());
+    }
     g.write_vlen_strings(name, values).map(|_| ())
 }
 

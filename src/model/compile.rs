@@ -1476,6 +1476,10 @@ impl Compiler<'_> {
             let span = ss.span();
             let s = ss.get_ref();
             let name = self.name(&s.name, &format!("{f}.name"))?;
+            // a name every output format can hold (HDF5 link, CSV column), checked here
+            // so `check` rejects it rather than the writer after the run
+            crate::output::check_output_name(&name)
+                .map_err(|e| self.err(s.name.span(), format!("{f}.name"), e))?;
             if !sensor_names.insert(name.clone()) {
                 return Err(self.err(
                     s.name.span(),

@@ -1,0 +1,745 @@
+//! Fault injection on the output of `run` and `sweep`: every test runs the built binary
+//! as a real process and does to it what happens to campaigns in practice (a full disk,
+//! the directory removed, a second writer, SIGTERM, SIGKILL), then reads what is left
+//! with h5py (tests/read_campaign.py --any), the reference reader. Plus one regression
+//! test per class of the output defects of issue 15 (path refused before any work,
+//! symlinks, FIFOs, names, empty string lists, exit codes, panics).
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A fresh, empty directory for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("output_faults")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn latdyn(args: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_latdyn"));
+    c.args(args)
+        .current_dir(root())
+        // the panic line must be the whole report: no backtrace from the environment
+        .env_remove("RUST_BACKTRACE")
+        .env_remove("LATDYN_FAULT_PANIC");
+    c
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn spawn(mut c: Command) -> Child {
+    c.stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Wait for `child` at most `secs`, reading its output meanwhile (a sweep's JSON fills a
+/// pipe); a process still running then is killed and the test fails (a hang is a
+/// defect, not a slow test).
+fn finish(child: Child, secs: u64) -> Output {
+    let pid = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    match rx.recv_timeout(Duration::from_secs(secs)) {
+        Ok(out) => out.unwrap(),
+        Err(_) => {
+            let _ = Command::new("kill")
+                .args(["-s", "KILL", &pid.to_string()])
+                .status();
+            let out = rx.recv().unwrap().unwrap();
+            panic!(
+                "latdyn still running after {secs} s; stderr:\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    }
+}
+
+fn run_for(c: Command, secs: u64) -> Output {
+    finish(spawn(c), secs)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn signal(child: &Child, sig: &str) {
+    let st = Command::new("kill")
+        .args(["-s", sig, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success(), "kill -s {sig}");
+}
+
+/// Poll until `cond` holds (at most `secs`).
+fn wait_until(secs: u64, what: &str, mut cond: impl FnMut() -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    while !cond() {
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(25));
+    }
+}
+
+fn h5py_available() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import h5py"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !ok && std::env::var_os("CI").is_some() {
+        panic!("h5py is not installed, but CI is set: .ci/run must install h5py");
+    }
+    ok
+}
+
+/// Open every object of `path` with h5py and summarise it (see tests/read_campaign.py);
+/// None (with a visible SKIPPED line) where h5py is not installed.
+fn h5py_summary(path: &Path) -> Option<serde_json::Value> {
+    if !h5py_available() {
+        println!("SKIPPED (h5py part): h5py not installed");
+        return None;
+    }
+    let out = Command::new("python3")
+        .arg(root().join("tests/read_campaign.py"))
+        .arg("--any")
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "h5py cannot read {}:\n{}",
+        path.display(),
+        stderr(&out)
+    );
+    Some(serde_json::from_slice(&out.stdout).unwrap())
+}
+
+/// Root status and per-variant states with rust-hdf5 (always available).
+fn rust_summary(path: &Path) -> (String, Vec<i32>) {
+    let f = rust_hdf5::H5File::open(path).unwrap();
+    let st = f.attr_string("status").unwrap();
+    let state = f
+        .dataset("status/state")
+        .unwrap()
+        .read_raw::<i32>()
+        .unwrap();
+    (st, state)
+}
+
+fn no_temporaries(dir: &Path) {
+    let left: Vec<String> = std::fs::read_dir(dir)
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".tmp"))
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+}
+
+/// A sweep of `n` short variants of the rotating cantilever on one thread: long enough
+/// in total to be hit mid-campaign (each variant a few tens of ms in the test profile),
+/// short per variant so a flush comes often.
+fn long_sweep(n: usize, out: &Path) -> Command {
+    let vary = format!("omega=1:5:{n}");
+    latdyn(&[
+        "sweep",
+        "models/rotating_cantilever.toml",
+        "--vary",
+        &vary,
+        "--set",
+        "t_end=0.5",
+        "--threads",
+        "1",
+        "--json",
+        "-o",
+        s(out),
+    ])
+}
+
+/// The file exists and a flush after the first finished variant has happened.
+fn has_completed_variant(path: &Path) -> bool {
+    path.exists()
+        && rust_hdf5::H5File::open(path)
+            .ok()
+            .and_then(|f| f.dataset("status/state").ok())
+            .and_then(|d| d.read_raw::<i32>().ok())
+            .is_some_and(|st| st.contains(&2))
+}
+
+// ---------------------------------------------------------------- signals and kills
+
+#[test]
+fn sigterm_mid_sweep_leaves_a_readable_file_marked_interrupted_and_exits_4() {
+    let dir = scratch("sigterm_sweep");
+    let path = dir.join("c.h5");
+    let child = spawn(long_sweep(2000, &path));
+    wait_until(30, "a flushed completed variant", || {
+        has_completed_variant(&path)
+    });
+    signal(&child, "TERM");
+    let out = finish(child, 30);
+    assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "interrupted");
+    let (status, state) = rust_summary(&path);
+    assert_eq!(status, "interrupted");
+    assert!(state.contains(&2) && state.contains(&4), "{state:?}");
+    assert!(!state.contains(&1), "no variant left running: {state:?}");
+    if let Some(h) = h5py_summary(&path) {
+        assert_eq!(h["status"], "interrupted");
+        assert_eq!(h["complete"], 0);
+    }
+    assert!(!dir.join("c.h5.lock").exists(), "lock file removed");
+    no_temporaries(&dir);
+}
+
+#[test]
+fn sighup_stops_a_sweep_like_sigint() {
+    let dir = scratch("sighup_sweep");
+    let path = dir.join("c.h5");
+    let child = spawn(long_sweep(2000, &path));
+    wait_until(30, "the campaign file", || path.exists());
+    signal(&child, "HUP");
+    let out = finish(child, 30);
+    assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
+    assert_eq!(rust_summary(&path).0, "interrupted");
+}
+
+#[test]
+fn sigterm_mid_run_keeps_the_samples_so_far_marked_interrupted() {
+    let dir = scratch("sigterm_run");
+    for name in ["r.h5", "r.csv"] {
+        let path = dir.join(name);
+        // 100 000 output samples, ~25 s of simulation in the test profile: surely mid-run
+        let child = spawn(latdyn(&[
+            "run",
+            "models/rotating_cantilever.toml",
+            "--set",
+            "t_end=1000",
+            "-o",
+            s(&path),
+        ]));
+        wait_until(30, "the run's file", || path.exists());
+        std::thread::sleep(Duration::from_millis(1500));
+        signal(&child, "TERM");
+        let out = finish(child, 30);
+        assert_eq!(out.status.code(), Some(4), "{name}: {}", stderr(&out));
+        assert!(stderr(&out).contains("interrupted"), "{}", stderr(&out));
+        if name.ends_with(".csv") {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let rows = text.lines().count();
+            assert!(rows > 2, "CSV holds the samples so far: {rows} lines");
+            assert!(rows < 100_000, "and not a finished run: {rows} lines");
+            continue;
+        }
+        let (status, state) = rust_summary(&path);
+        assert_eq!(
+            (status.as_str(), state.as_slice()),
+            ("interrupted", &[4][..])
+        );
+        if let Some(h) = h5py_summary(&path) {
+            assert_eq!(h["status"], "interrupted");
+            let finite = h["finite_samples"][0].as_u64().unwrap();
+            let n_time = h["n_time"].as_u64().unwrap();
+            // two single-component sensors: samples so far finite, the rest NaN
+            assert!(finite > 2 && finite < 2 * n_time, "{finite} of {n_time}");
+        }
+    }
+    no_temporaries(&dir);
+}
+
+#[test]
+fn sigkill_mid_sweep_leaves_the_last_flush_valid_and_a_stale_lock_is_harmless() {
+    let dir = scratch("sigkill_sweep");
+    let path = dir.join("c.h5");
+    let child = spawn(long_sweep(2000, &path));
+    wait_until(30, "a flushed completed variant", || {
+        has_completed_variant(&path)
+    });
+    // SIGKILL: no handler runs, the atomic rename is all there is
+    signal(&child, "KILL");
+    let out = finish(child, 30);
+    assert_eq!(out.status.code(), None, "killed by a signal");
+    let (status, state) = rust_summary(&path);
+    assert_eq!(status, "running", "the last flush of a killed sweep");
+    assert!(state.contains(&2), "{state:?}");
+    if let Some(h) = h5py_summary(&path) {
+        let n_time = h["n_time"].as_u64().unwrap();
+        for (v, st) in state.iter().enumerate() {
+            if *st == 2 {
+                // a completed variant's samples are all there (2 sensors × 1 component)
+                assert_eq!(h["finite_samples"][v].as_u64().unwrap(), 2 * n_time);
+            }
+        }
+    }
+    // the killed process's lock file stays, but the kernel released its lock
+    assert!(dir.join("c.h5.lock").exists());
+    let out = run_for(
+        latdyn(&[
+            "sweep",
+            "models/rotating_cantilever.toml",
+            "--vary",
+            "omega=1:2:2",
+            "--set",
+            "t_end=0.1",
+            "-o",
+            s(&path),
+        ]),
+        60,
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert_eq!(rust_summary(&path), ("complete".to_string(), vec![2, 2]));
+}
+
+/// `run -o` rewrites its file as samples come (at most every 2 s), so even SIGKILL, which
+/// no handler sees, leaves the samples of the last flush, not an empty file.
+#[test]
+fn sigkill_mid_run_keeps_the_periodic_flush() {
+    let dir = scratch("sigkill_run");
+    let path = dir.join("r.h5");
+    let child = spawn(latdyn(&[
+        "run",
+        "models/rotating_cantilever.toml",
+        "--set",
+        "t_end=1000",
+        "-o",
+        s(&path),
+    ]));
+    // the first file (all NaN) comes at once; wait for a flush with samples in it
+    wait_until(30, "a periodic flush with samples", || {
+        path.exists()
+            && rust_hdf5::H5File::open(&path)
+                .ok()
+                .and_then(|f| f.dataset("sensors/tip_flap").ok())
+                .and_then(|d| d.read_raw::<f64>().ok())
+                .is_some_and(|x| x.get(1).is_some_and(|v| v.is_finite()))
+    });
+    signal(&child, "KILL");
+    let out = finish(child, 30);
+    assert_eq!(out.status.code(), None, "killed by a signal");
+    let (status, state) = rust_summary(&path);
+    assert_eq!((status.as_str(), state.as_slice()), ("running", &[1][..]));
+    if let Some(h) = h5py_summary(&path) {
+        assert!(h["finite_samples"][0].as_u64().unwrap() > 2, "{h}");
+    }
+}
+
+// ---------------------------------------------------------------- concurrent writers
+
+#[test]
+fn a_second_writer_is_refused_naming_the_first_and_the_first_campaign_survives() {
+    let dir = scratch("two_writers");
+    let path = dir.join("c.h5");
+    let first = spawn(long_sweep(2000, &path));
+    wait_until(30, "the first campaign's file", || path.exists());
+    for (verb, extra) in [("sweep", true), ("run", false)] {
+        let mut args = vec![verb, "models/rotating_cantilever.toml"];
+        if extra {
+            args.extend(["--vary", "omega=7:8:2"]);
+        }
+        args.extend(["--set", "t_end=0.1", "-o", s(&path)]);
+        let out = run_for(latdyn(&args), 60);
+        assert_eq!(out.status.code(), Some(2), "{verb}: {}", stderr(&out));
+        let err = stderr(&out);
+        assert!(
+            err.contains("another latdyn process is writing it")
+                && err.contains(&format!("pid {}", first.id())),
+            "{verb}: {err}"
+        );
+        assert_eq!(err.matches("error:").count(), 1, "one error line: {err}");
+    }
+    signal(&first, "TERM");
+    let out = finish(first, 30);
+    assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
+    let (status, state) = rust_summary(&path);
+    assert_eq!(status, "interrupted");
+    assert_eq!(
+        state.len(),
+        2000,
+        "the first campaign's file, not the second's"
+    );
+    if let Some(h) = h5py_summary(&path) {
+        assert!(h["command_line"]
+            .as_str()
+            .unwrap()
+            .contains("omega=1:5:2000"));
+    }
+}
+
+// ---------------------------------------------------------------- I/O errors mid-run
+
+#[test]
+fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5() {
+    let dir = scratch("dir_removed");
+    let sub = dir.join("gone");
+    std::fs::create_dir_all(&sub).unwrap();
+    let path = sub.join("c.h5");
+    let child = spawn(long_sweep(2000, &path));
+    wait_until(30, "a flushed completed variant", || {
+        has_completed_variant(&path)
+    });
+    std::fs::remove_dir_all(&sub).unwrap();
+    // the next flush (≤ 2 s after the last one) fails; the sweep must stop there, long
+    // before its 2000 variants are done
+    let out = finish(child, 60);
+    assert_eq!(out.status.code(), Some(5), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(err.contains("No such file or directory"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("the JSON summary must still come: {e}\n{err}"));
+    assert_eq!(v["status"], "output_failed");
+    assert!(v["message"].as_str().unwrap().contains("c.h5"), "{v}");
+    let vs = v["variants"].as_array().unwrap();
+    assert_eq!(vs.len(), 2000);
+    let not_run = vs.iter().filter(|x| x["status"] == "not_run").count();
+    assert!(
+        not_run > 1000,
+        "no new variant starts after the failure: {not_run} not run"
+    );
+}
+
+/// A 512 KiB tmpfs fills up mid-campaign: the sweep stops, the file on it is the last
+/// flush that fitted (valid, readable by h5py), no temporary file is left, exit 5.
+#[test]
+fn full_disk_mid_sweep_keeps_the_last_valid_flush_and_exits_5() {
+    let dir = scratch("full_disk");
+    let mnt = dir.join("mnt");
+    std::fs::create_dir_all(&mnt).unwrap();
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=512k", "tmpfs", s(&mnt)])
+        .stderr(Stdio::null())
+        .status()
+        .map(|st| st.success())
+        .unwrap_or(false);
+    if !mounted {
+        println!("SKIPPED: full_disk_mid_sweep: cannot mount a tmpfs (needs root)");
+        return;
+    }
+    struct Unmount(PathBuf);
+    impl Drop for Unmount {
+        fn drop(&mut self) {
+            let _ = Command::new("umount").arg(&self.0).status();
+        }
+    }
+    let _guard = Unmount(mnt.clone());
+    let path = mnt.join("c.h5");
+    let out = run_for(long_sweep(2000, &path), 120);
+    assert_eq!(out.status.code(), Some(5), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(err.contains("No space left on device"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "output_failed");
+    assert!(v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|x| x["status"] == "not_run"));
+    let (status, state) = rust_summary(&path);
+    assert_eq!(status, "running", "the last flush that fitted");
+    assert_eq!(state.len(), 2000);
+    if let Some(h) = h5py_summary(&path) {
+        assert_eq!(h["state"].as_array().unwrap().len(), 2000);
+    }
+    no_temporaries(&mnt);
+}
+
+// ---------------------------------------------------------------- refused before any work
+
+#[test]
+fn run_into_a_missing_directory_fails_before_simulating() {
+    let dir = scratch("missing_dir");
+    for name in ["x.h5", "x.csv"] {
+        let path = dir.join("nodir").join(name);
+        // t_end = 5000 s is over 2 minutes of simulation in the test profile (0.53 s per
+        // 20 s measured): only a refusal before the run returns within the 60 s limit
+        let t0 = Instant::now();
+        let out = run_for(
+            latdyn(&[
+                "run",
+                "models/rotating_cantilever.toml",
+                "--set",
+                "t_end=5000",
+                "--json",
+                "-o",
+                s(&path),
+            ]),
+            60,
+        );
+        assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+        assert!(stderr(&out).contains("nodir"), "{}", stderr(&out));
+        assert!(out.stdout.is_empty(), "no result for a refused run");
+        eprintln!("{name}: refused after {:.3} s", t0.elapsed().as_secs_f64());
+    }
+    let out = run_for(
+        latdyn(&[
+            "sweep",
+            "models/rotating_cantilever.toml",
+            "--vary",
+            "omega=1:2:2",
+            "-o",
+            s(&dir.join("nodir/c.h5")),
+        ]),
+        60,
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}
+
+#[cfg(unix)]
+#[test]
+fn symlinks_fifos_devices_and_directories_are_refused_for_every_format() {
+    let dir = scratch("non_regular");
+    let fifo = dir.join("fifo.h5");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let mut cases: Vec<(PathBuf, &str)> = vec![
+        (fifo, "a FIFO"),
+        (PathBuf::from("/dev/null"), "a device"),
+        (dir.clone(), "a directory"),
+    ];
+    for ext in ["h5", "csv"] {
+        let real = dir.join(format!("real.{ext}"));
+        std::fs::write(&real, "precious").unwrap();
+        let link = dir.join(format!("link.{ext}"));
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        cases.push((link, "a symbolic link"));
+        // a dangling link must not be created through either
+        let dangling = dir.join(format!("dangling.{ext}"));
+        std::os::unix::fs::symlink(dir.join(format!("nothing.{ext}")), &dangling).unwrap();
+        cases.push((dangling, "a symbolic link"));
+    }
+    for (path, what) in &cases {
+        for verb in ["run", "sweep"] {
+            let mut args = vec![verb, "models/pendulum.toml", "--set", "t_end=0.01"];
+            if verb == "sweep" {
+                args.extend(["--vary", "theta0=0.5:1:2"]);
+            }
+            args.extend(["-o", s(path)]);
+            let out = run_for(latdyn(&args), 30);
+            let err = stderr(&out);
+            assert_eq!(
+                out.status.code(),
+                Some(2),
+                "{verb} -o {}: {err}",
+                path.display()
+            );
+            assert!(err.contains(what), "{verb} -o {}: {err}", path.display());
+        }
+    }
+    for ext in ["h5", "csv"] {
+        assert_eq!(
+            std::fs::read_to_string(dir.join(format!("real.{ext}"))).unwrap(),
+            "precious",
+            "the link's target is untouched"
+        );
+        assert!(!dir.join(format!("nothing.{ext}")).exists());
+        assert!(std::fs::symlink_metadata(dir.join(format!("link.{ext}")))
+            .unwrap()
+            .file_type()
+            .is_symlink());
+    }
+}
+
+#[test]
+fn unwritable_sensor_names_are_rejected_by_check_with_their_location() {
+    let dir = scratch("names");
+    let base = std::fs::read_to_string(root().join("models/pendulum.toml")).unwrap();
+    for bad in [
+        "a/b",
+        "..",
+        ".",
+        "a\\u0000b",
+        "tip.z",
+        "a,b",
+        " ",
+        "tab\\tname",
+    ] {
+        let text = base.replace("name = \"angle\"", &format!("name = \"{bad}\""));
+        assert_ne!(text, base);
+        let model = dir.join("bad_name.toml");
+        std::fs::write(&model, &text).unwrap();
+        let out = run_for(latdyn(&["check", s(&model)]), 30);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {err}");
+        assert!(
+            err.contains("bad_name.toml:") && err.contains("sensors[0].name"),
+            "{bad:?}: {err}"
+        );
+    }
+}
+
+// ---------------------------------------------------------------- what a file says
+
+#[test]
+fn empty_string_lists_and_zero_variant_shards_are_readable_by_h5py() {
+    let dir = scratch("empty_lists");
+    let no_params = dir.join("no_params.h5");
+    let out = run_for(
+        latdyn(&[
+            "run",
+            "tests/models/no_parameters.toml",
+            "-o",
+            s(&no_params),
+        ]),
+        60,
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let shard = dir.join("shard.h5");
+    let out = run_for(
+        latdyn(&[
+            "sweep",
+            "models/pendulum.toml",
+            "--vary",
+            "theta0=0.5:1:3",
+            "--set",
+            "t_end=0.1",
+            "--shard",
+            "5/10",
+            "-o",
+            s(&shard),
+        ]),
+        60,
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    // rust-hdf5 reads both whatever h5py says
+    assert_eq!(rust_summary(&shard), ("complete".into(), vec![]));
+    if let Some(h) = h5py_summary(&no_params) {
+        assert_eq!(h["parameter_names"], serde_json::json!([]));
+        assert_eq!(h["state"], serde_json::json!([2]));
+    }
+    if let Some(h) = h5py_summary(&shard) {
+        assert_eq!(h["state"], serde_json::json!([]));
+        assert_eq!(h["messages"], serde_json::json!([]));
+        // the layout of the campaign even without a variant: names, sensors [0, T, C]
+        assert_eq!(h["parameter_names"][0], "theta0");
+        assert_eq!(h["sensors"]["angle"], serde_json::json!([0, 101, 6]));
+    }
+}
+
+#[test]
+fn a_sweep_whose_variants_all_fail_exits_3_and_the_file_counts_them() {
+    let dir = scratch("all_failed");
+    let path = dir.join("c.h5");
+    // growth = 60 diverges (tests/ensemble.rs)
+    let out = run_for(
+        latdyn(&[
+            "sweep",
+            "tests/models/spinning_hub.toml",
+            "--vary",
+            "growth=60:70:2",
+            "--json",
+            "-o",
+            s(&path),
+        ]),
+        120,
+    );
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["failed_variants"], 2);
+    assert!(stderr(&out).contains("2 of 2 variants failed"));
+    let f = rust_hdf5::H5File::open(&path).unwrap();
+    assert!(f
+        .attr_names()
+        .unwrap()
+        .contains(&"failed_variants".to_string()));
+    if let Some(h) = h5py_summary(&path) {
+        assert_eq!(h["failed_variants"], 2);
+        assert_eq!(h["state"], serde_json::json!([3, 3]));
+    }
+}
+
+/// A panic inside one variant's simulation is caught there: that variant is marked failed
+/// with the internal error, the others complete, the file is finished, the JSON summary
+/// comes, and the sweep exits 70 (a bug, whatever else happened).
+#[test]
+fn a_panicking_variant_is_marked_failed_the_others_complete_and_the_sweep_exits_70() {
+    let dir = scratch("variant_panic");
+    let path = dir.join("c.h5");
+    let mut c = latdyn(&[
+        "sweep",
+        "models/pendulum.toml",
+        "--vary",
+        "theta0=0.5:1:3",
+        "--set",
+        "t_end=0.01",
+        "--json",
+        "-o",
+        s(&path),
+    ]);
+    c.env("LATDYN_FAULT_PANIC", "variant");
+    let out = run_for(c, 60);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(70), "{err}");
+    assert!(
+        err.starts_with("error: internal error: injected panic in a variant")
+            && err.contains("internal error in variant(s) 0"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let st: Vec<&str> = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["status"].as_str().unwrap())
+        .collect();
+    assert_eq!(st, ["failed", "completed", "completed"]);
+    assert_eq!(rust_summary(&path), ("complete".to_string(), vec![3, 2, 2]));
+    if let Some(h) = h5py_summary(&path) {
+        assert!(h["messages"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("internal error: injected panic"));
+    }
+}
+
+#[test]
+fn panics_become_one_clean_line_and_exit_70() {
+    for (site, args) in [
+        ("main", vec!["check", "models/pendulum.toml"]),
+        (
+            "worker",
+            vec![
+                "sweep",
+                "models/pendulum.toml",
+                "--vary",
+                "theta0=0.5:1:2",
+                "--set",
+                "t_end=0.01",
+            ],
+        ),
+    ] {
+        let mut c = latdyn(&args);
+        c.env("LATDYN_FAULT_PANIC", site);
+        let out = run_for(c, 60);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(70), "{site}: {err}");
+        let first = err.lines().next().unwrap_or_default();
+        assert!(
+            first.starts_with("error: internal error: injected panic")
+                && first.contains(" at src/main.rs:")
+                && first.ends_with("(this is a bug in latdyn; please report it)"),
+            "{site}: {err}"
+        );
+        assert!(
+            !err.contains("stack backtrace") && !err.contains("RUST_BACKTRACE"),
+            "{site}: no dump: {err}"
+        );
+    }
+}
