@@ -1,0 +1,91 @@
+//! Time-boxed fuzz run (CI): replays every input in `tests/fuzz_regressions/`, then
+//! generates cases for `LATDYN_FUZZ_SECS` seconds (default 60). Fails on any panic, abort
+//! (death by signal), hang over 20 s, CLI exit code outside {0, 2, 3, 4, 5} or bad `--json`
+//! output. The generator, mutators and oracle are in `tests/fuzz/gen.rs` (shared with the
+//! long campaign, `examples/fuzz.rs`).
+//!
+//! Environment: `LATDYN_FUZZ_SECS` (duration), `LATDYN_FUZZ_SEED` (default: from the clock,
+//! printed, so CI explores new cases on every run and a finding can be regenerated),
+//! `LATDYN_FUZZ_OUT` (where finding inputs are written).
+
+#[path = "fuzz/gen.rs"]
+mod gen;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Not a test: this test binary re-executes itself with this test selected and
+/// `LATDYN_FUZZ_WORKER` set to become the worker process of in-process cases (an abort
+/// or hang then kills the worker, not the judging parent). A no-op otherwise.
+#[test]
+fn fuzz_worker_entry() {
+    if std::env::var_os(gen::WORKER_ENV).is_some() {
+        gen::worker_main();
+    }
+}
+
+fn config(seed: u64, duration: Option<Duration>, cases: u64) -> gen::Config {
+    let exe = std::env::current_exe().expect("test executable path");
+    let out = std::env::var_os("LATDYN_FUZZ_OUT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fuzz-findings"));
+    gen::Config {
+        seed,
+        cases,
+        duration,
+        cli_every: 50,
+        bin: Some(PathBuf::from(env!("CARGO_BIN_EXE_latdyn"))),
+        worker_cmd: vec![
+            exe.display().to_string(),
+            "fuzz_worker_entry".into(),
+            "--exact".into(),
+            "--nocapture".into(),
+            "--test-threads=1".into(),
+        ],
+        worker_env: vec![(gen::WORKER_ENV.into(), "1".into())],
+        out,
+        hang_limit: gen::HANG_LIMIT,
+        progress: true,
+    }
+}
+
+#[test]
+fn fuzz_regressions_and_time_boxed_run_find_no_panic_abort_or_hang() {
+    if std::env::var_os(gen::WORKER_ENV).is_some() {
+        return;
+    }
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    let regressions = gen::load_cases(&dir).expect("regression inputs parse");
+    let mut failed = Vec::new();
+    // each regression input alone, so a failure names its file
+    for (path, case) in &regressions {
+        let rep = gen::campaign(&config(0, None, 0), std::slice::from_ref(case)).expect("fuzz worker starts");
+        if let Some(sig) = rep.findings.keys().next() {
+            failed.push(format!("{}: {sig}", path.display()));
+        }
+    }
+    eprintln!("fuzz: {} regression inputs replayed, {} failed", regressions.len(), failed.len());
+    for f in &failed {
+        eprintln!("  FAILED {f}");
+    }
+
+    let secs: f64 = std::env::var("LATDYN_FUZZ_SECS").ok().and_then(|s| s.parse().ok()).unwrap_or(60.0);
+    let seed: u64 = std::env::var("LATDYN_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or_else(|| {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(1)
+    });
+    eprintln!("fuzz: seed {seed} (LATDYN_FUZZ_SEED={seed} repeats this run), {secs} s");
+    let cfg = config(seed, Some(Duration::from_secs_f64(secs)), u64::MAX / 2);
+    let rep = gen::campaign(&cfg, &[]).expect("fuzz worker starts");
+    eprintln!("{}", rep.summary());
+    assert!(rep.cases > 0, "the fuzzer ran no case");
+    assert!(
+        failed.is_empty() && rep.findings.is_empty(),
+        "fuzzing found {} failing regression inputs and {} new findings (inputs under {}); see the log above",
+        failed.len(),
+        rep.finding_count(),
+        cfg.out.display()
+    );
+}
