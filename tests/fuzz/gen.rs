@@ -228,7 +228,8 @@ fn odd_name(r: &mut Rng) -> String {
 }
 
 /// TOML basic string with every control character escaped.
-pub fn toml_str(s: &str) -> String {
+pub fn toml_str(s: impl AsRef<str>) -> String {
+    let s = s.as_ref();
     let mut o = String::with_capacity(s.len() + 2);
     o.push('"');
     for c in s.chars() {
@@ -675,7 +676,7 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
         }
     }
     if wild && r.one_in(20) {
-        t += r.pick(&["unknown_key = 1\n", "[solver]\ndt = 1\n", "[[nodes]]\n", "[bogus]\nx = 1\n"]);
+        t += *r.pick(&["unknown_key = 1\n", "[solver]\ndt = 1\n", "[[nodes]]\n", "[bogus]\nx = 1\n"]);
     }
     t
 }
@@ -708,7 +709,10 @@ fn extreme_value(r: &mut Rng) -> toml::Value {
 fn other_type(r: &mut Rng, names: &[String]) -> toml::Value {
     use toml::Value as V;
     match r.below(7) {
-        0 => V::String(gen_expr(r, names, r.one_in(2), 0)),
+        0 => {
+            let time = r.one_in(2);
+            V::String(gen_expr(r, names, time, 0))
+        }
         1 => V::Boolean(r.one_in(2)),
         2 => V::Array(vec![]),
         3 => V::Array(vec![extreme_value(r), extreme_value(r), extreme_value(r)]),
@@ -789,7 +793,10 @@ pub fn mutate_value(r: &mut Rng, text: &str) -> Option<String> {
             let Some(v) = get_mut(&mut root, &p) else { continue };
             *v = match (op, &*v) {
                 (0..=2, toml::Value::Float(_) | toml::Value::Integer(_)) => extreme_value(r),
-                (0..=1, toml::Value::String(_)) => toml::Value::String(gen_expr(r, &names, r.one_in(2), 0)),
+                (0..=1, toml::Value::String(_)) => {
+                    let time = r.one_in(2);
+                    toml::Value::String(gen_expr(r, &names, time, 0))
+                }
                 (2, toml::Value::String(_)) => toml::Value::String(odd_name(r)),
                 (3, toml::Value::Array(a)) if !a.is_empty() => {
                     // an entry more (duplicate) or one fewer
@@ -932,12 +939,18 @@ fn pick_analysis(r: &mut Rng) -> Analysis {
 /// A model case: generated, a mutated seed, or a seed with extreme `--set` values.
 pub fn gen_model_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
     let text = match r.below(10) {
-        0..=4 => gen_model(r, r.one_in(4)),
+        0..=4 => {
+            let tame = r.one_in(4);
+            gen_model(r, tame)
+        }
         5..=6 if !seeds.is_empty() => {
             let s = &r.pick(seeds).1;
             mutate_value(r, s).unwrap_or_else(|| mutate_bytes(r, s))
         }
-        7 if !seeds.is_empty() => mutate_bytes(r, &r.pick(seeds).1.clone()),
+        7 if !seeds.is_empty() => {
+            let s = r.pick(seeds).1.clone();
+            mutate_bytes(r, &s)
+        }
         8 if !seeds.is_empty() => r.pick(seeds).1.clone(),
         _ => {
             let g = gen_model(r, false);
@@ -1023,7 +1036,8 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
     ]);
     let heavy = matches!(verb, "run" | "sweep");
     let model = if heavy || seeds.is_empty() || r.one_in(2) {
-        gen_model(r, heavy || r.one_in(2))
+        let tame = heavy || r.one_in(2);
+        gen_model(r, tame)
     } else if r.one_in(2) {
         let s = &r.pick(seeds).1;
         mutate_value(r, s).unwrap_or_else(|| s.clone())
