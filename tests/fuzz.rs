@@ -54,14 +54,19 @@ fn fuzz_regressions_and_time_boxed_run_find_no_panic_abort_or_hang() {
     if std::env::var_os(gen::WORKER_ENV).is_some() {
         return;
     }
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    // LATDYN_FUZZ_REGRESSIONS: another directory of inputs (e.g. to replay the findings of
+    // a campaign with LATDYN_FUZZ_SECS=0)
+    let dir = std::env::var_os("LATDYN_FUZZ_REGRESSIONS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions"));
     let regressions = gen::load_cases(&dir).expect("regression inputs parse");
     let mut failed = Vec::new();
     // each regression input alone, so a failure names its file
     for (path, case) in &regressions {
         let rep = gen::campaign(&config(0, None, 0), std::slice::from_ref(case)).expect("fuzz worker starts");
-        if let Some(sig) = rep.findings.keys().next() {
-            failed.push(format!("{}: {sig}", path.display()));
+        match rep.findings.keys().next() {
+            Some(sig) => failed.push(format!("{}: {sig}", path.display())),
+            None => eprintln!("  ok {} ({:?})", path.display(), rep.classes.keys().collect::<Vec<_>>()),
         }
     }
     eprintln!("fuzz: {} regression inputs replayed, {} failed", regressions.len(), failed.len());

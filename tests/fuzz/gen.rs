@@ -777,10 +777,10 @@ pub fn param_names(text: &str) -> Vec<String> {
 
 /// TOML-value mutations: extremes for numbers, type swaps, odd strings and expressions,
 /// deleted, duplicated and unknown keys and array entries. None when the text is not TOML.
-pub fn mutate_value(r: &mut Rng, text: &str) -> Option<String> {
+pub fn mutate_value(r: &mut Rng, text: &str, max_ops: usize) -> Option<String> {
     let mut root = toml::Value::Table(text.parse::<toml::Table>().ok()?);
     let names = param_names(text);
-    for _ in 0..r.range(1, 4) {
+    for _ in 0..r.range(1, max_ops.max(1)) {
         let mut paths = Vec::new();
         collect_paths(&root, &mut Vec::new(), &mut paths);
         if paths.is_empty() {
@@ -938,23 +938,35 @@ fn pick_analysis(r: &mut Rng) -> Analysis {
 
 /// A model case: generated, a mutated seed, or a seed with extreme `--set` values.
 pub fn gen_model_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
-    let text = match r.below(10) {
-        0..=4 => {
-            let tame = r.one_in(4);
-            gen_model(r, tame)
+    // the mix favours nearly valid models (one mutation away from valid), since a model
+    // that fails to compile never reaches assembly, the elements or the solvers
+    let text = match r.below(20) {
+        0..=5 => gen_model(r, true),
+        6..=9 => {
+            let g = gen_model(r, true);
+            mutate_value(r, &g, 1).unwrap_or(g)
         }
-        5..=6 if !seeds.is_empty() => {
+        10..=11 => gen_model(r, false),
+        12..=13 if !seeds.is_empty() => {
             let s = &r.pick(seeds).1;
-            mutate_value(r, s).unwrap_or_else(|| mutate_bytes(r, s))
+            mutate_value(r, s, 1).unwrap_or_else(|| mutate_bytes(r, s))
         }
-        7 if !seeds.is_empty() => {
+        14 if !seeds.is_empty() => {
+            let s = &r.pick(seeds).1;
+            mutate_value(r, s, 4).unwrap_or_else(|| mutate_bytes(r, s))
+        }
+        15 if !seeds.is_empty() => {
             let s = r.pick(seeds).1.clone();
             mutate_bytes(r, &s)
         }
-        8 if !seeds.is_empty() => r.pick(seeds).1.clone(),
+        16..=17 if !seeds.is_empty() => r.pick(seeds).1.clone(),
         _ => {
             let g = gen_model(r, false);
-            if r.one_in(2) { mutate_bytes(r, &g) } else { mutate_value(r, &g).unwrap_or(g) }
+            if r.one_in(2) {
+                mutate_bytes(r, &g)
+            } else {
+                mutate_value(r, &g, 4).unwrap_or(g)
+            }
         }
     };
     let mut set = Vec::new();
@@ -1040,7 +1052,7 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
         gen_model(r, tame)
     } else if r.one_in(2) {
         let s = &r.pick(seeds).1;
-        mutate_value(r, s).unwrap_or_else(|| s.clone())
+        mutate_value(r, s, 3).unwrap_or_else(|| s.clone())
     } else {
         r.pick(seeds).1.clone()
     };
@@ -1136,6 +1148,10 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
         let i = r.below(args.len() + 1);
         args.insert(i, junk);
     }
+    // a process argument cannot hold NUL (spawn refuses it)
+    for a in &mut args {
+        a.retain(|c| c != '\0');
+    }
     Case::Cli { args, files }
 }
 
@@ -1189,6 +1205,15 @@ fn normalize(s: &str) -> String {
 // Worker side (in-process cases)
 
 static PANIC_INFO: Mutex<Option<String>> = Mutex::new(None);
+
+/// A dynamics case still running after this is stopped at its next output sample and
+/// counted as `stopped_slow`: a valid model that needs millions of steps (say EI = 1e20,
+/// where Newton only converges at dt/10⁴) is a slow run, not a crash, and must not eat
+/// the hang limit. Statics has no stop hook: a statics case over the hang limit is a hang.
+pub const SLOW_CASE: Duration = Duration::from_secs(3);
+static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+/// case number and start of the current case, for the worker's slow-case timer
+static CASE_CLOCK: Mutex<(u64, Option<Instant>)> = Mutex::new((0, None));
 
 /// The panic's message and the innermost latdyn function on the stack (from a backtrace;
 /// the panic location alone is often inside std, e.g. `capacity overflow`).
@@ -1296,9 +1321,10 @@ fn model_case_body(text: &str, set: &[(String, f64)], analysis: Analysis) -> &'s
                 m.solver.t_end = m.solver.t_end.min(dt * k as f64);
             }
             m.solver.output_dt = 0.0;
-            let (_, _, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
+            let (_, _, err) = latdyn::solver::dynamics::run_until(&m, Some(&STOP), |_, _| {});
             match err {
                 None => "solved",
+                Some(latdyn::solver::dynamics::DynamicsError::Interrupted { .. }) => "stopped_slow",
                 Some(e) => {
                     let _ = e.to_string();
                     "solve_failed"
@@ -1311,12 +1337,30 @@ fn model_case_body(text: &str, set: &[(String, f64)], analysis: Analysis) -> &'s
 /// Worker main loop: one JSON case per stdin line, one reply line per case.
 pub fn worker_main() {
     install_panic_hook();
+    std::thread::spawn(|| loop {
+        std::thread::sleep(Duration::from_millis(100));
+        if let Ok(g) = CASE_CLOCK.lock() {
+            if g.1.is_some_and(|t| t.elapsed() > SLOW_CASE) {
+                STOP.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        }
+    });
     let stdin = std::io::stdin();
     let mut out = std::io::stdout();
     for line in stdin.lock().lines() {
         let Ok(line) = line else { break };
         let o = match serde_json::from_str::<Value>(&line).map_err(|e| e.to_string()).and_then(|v| Case::from_json(&v)) {
-            Ok(c) => run_model_case(&c),
+            Ok(c) => {
+                if let Ok(mut g) = CASE_CLOCK.lock() {
+                    *g = (g.0 + 1, Some(Instant::now()));
+                }
+                STOP.store(false, std::sync::atomic::Ordering::Relaxed);
+                let o = run_model_case(&c);
+                if let Ok(mut g) = CASE_CLOCK.lock() {
+                    g.1 = None;
+                }
+                o
+            }
             Err(e) => Outcome::ok(&format!("bad_case {e}")),
         };
         let reply = json!({"class": o.class, "sig": o.sig});
@@ -1362,8 +1406,9 @@ impl Worker {
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines() {
                 let Ok(line) = line else { break };
-                if let Some(rest) = line.strip_prefix(REPLY) {
-                    if tx.send(rest.to_string()).is_err() {
+                // libtest prints `test NAME ... ` without a newline before the first reply
+                if let Some(at) = line.find(REPLY) {
+                    if tx.send(line[at + REPLY.len()..].to_string()).is_err() {
                         break;
                     }
                 }
