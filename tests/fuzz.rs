@@ -94,3 +94,35 @@ fn fuzz_regressions_and_time_boxed_run_find_no_panic_abort_or_hang() {
         cfg.out.display()
     );
 }
+
+/// The structure-aware generator is only worth its name if its tame models get through
+/// compilation to the solvers: at least half of them must compile (the rest are broken
+/// on purpose by odd references and names in a few fields).
+#[test]
+fn tame_generated_models_mostly_compile() {
+    if std::env::var_os(gen::WORKER_ENV).is_some() {
+        return;
+    }
+    let mut errors: std::collections::BTreeMap<String, usize> = Default::default();
+    let n = 400;
+    let mut ok = 0;
+    for i in 0..n {
+        let mut r = gen::Rng::new(1000 + i);
+        let text = gen::gen_model(&mut r, true);
+        match latdyn::model::compile_str(&text, "gen.toml", &[]) {
+            Ok(_) => ok += 1,
+            Err(e) => {
+                let msg = e.to_string();
+                let key = msg.split_once(": ").map_or(msg.as_str(), |x| x.1).chars().take(90).collect::<String>();
+                *errors.entry(key).or_default() += 1;
+            }
+        }
+    }
+    let mut top: Vec<_> = errors.into_iter().collect();
+    top.sort_by(|a, b| b.1.cmp(&a.1));
+    for (m, c) in top.iter().take(12) {
+        eprintln!("{c:>4} × {m}");
+    }
+    eprintln!("{ok} of {n} tame generated models compile");
+    assert!(ok * 2 >= n, "only {ok} of {n} tame generated models compile");
+}

@@ -399,7 +399,7 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
         } else {
             r.pick(&["L", "EI", "EA", "GJ", "rhoA", "P", "omega", "T", "elements", "n", "k", "m", "g"])
                 .to_string()
-                + &if r.one_in(2) { format!("{i}") } else { String::new() }
+                + &if tame || r.one_in(2) { format!("{i}") } else { String::new() }
         };
         let key = if name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') && !name.is_empty() {
             name.clone()
@@ -468,7 +468,9 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     let mut beams: Vec<String> = Vec::new();
     for i in 0..nb {
         let name = if wild && r.one_in(12) { odd_name(r) } else { format!("b{i}") };
-        let (from, to) = if tame || r.below(3) > 0 {
+        let (from, to) = if tame {
+            (i, i + 1)
+        } else if r.below(3) > 0 {
             let a = r.below(nodes.len().max(1));
             (a, (a + 1) % nodes.len().max(1))
         } else {
@@ -533,7 +535,7 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     for i in 0..r.range(0, if tame { 1 } else { 2 }) {
         let name = if wild && r.one_in(12) { odd_name(r) } else { format!("body{i}") };
         t += &format!("[[bodies]]\nname = {}\nposition = {}\n", toml_str(&name), gen_vec(r, &params, false, tame));
-        if r.below(4) > 0 {
+        if tame || r.below(4) > 0 {
             t += &format!("mass = {}\n", gen_num(r, &params, false, tame));
         }
         if r.one_in(2) {
@@ -554,17 +556,21 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
         if wild && r.one_in(6) {
             t += "axes = [[1, 0, 0], [1, 0, 0]]\n";
         }
-        for k in 0..r.range(0, 2) {
-            let kind = *r.pick(&["translation", "rotation", "free_rotation", "spin"]);
+        for k in 0..r.range(0, if tame { 1 } else { 2 }) {
+            let kind = if tame {
+                *r.pick(&["translation", "rotation", "free_rotation"])
+            } else {
+                *r.pick(&["translation", "rotation", "free_rotation", "spin"])
+            };
             t += &format!("  [[bodies.dofs]]\n  type = \"{kind}\"\n");
             if kind != "free_rotation" || (wild && r.one_in(4)) {
                 t += &format!("  axis = {}\n", gen_vec(r, &params, false, tame));
             }
-            if r.one_in(2) {
+            if r.one_in(2) && !(tame && kind == "free_rotation") {
                 let d = if tame { "\"0.1*t\"".to_string() } else { toml_str(&gen_expr(r, &params, true, 0)) };
                 t += &format!("  drive = {d}\n");
                 driven.push((name.clone(), k));
-            } else if r.one_in(2) {
+            } else if r.one_in(2) && !(tame && kind == "free_rotation") {
                 t += &format!("  initial = {}\n", gen_num(r, &params, false, tame));
             }
             if wild && r.one_in(3) {
@@ -575,18 +581,20 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     }
     // joints
     let mut joints: Vec<String> = Vec::new();
-    for i in 0..r.range(0, if nodes.len() > 1 { 2 } else { 0 }) {
+    // tame: at most one joint, on the free end, to a body or the ground (node 0 is
+    // clamped, and a node-to-node hinge needs two nodes at one position)
+    for i in 0..r.range(0, if nodes.len() > 1 { if tame { 1 } else { 2 } } else { 0 }) {
         let name = if wild && r.one_in(12) { odd_name(r) } else { format!("j{i}") };
-        let node = nodes[nodes.len() - 1 - r.below(nodes.len().min(2))].clone();
+        let node = if tame { nodes[nodes.len() - 1].clone() } else { nodes[nodes.len() - 1 - r.below(nodes.len().min(2))].clone() };
         t += &format!("[[joints]]\nname = {}\nnode = {}\n", toml_str(&name), toml_str(&node));
-        if r.one_in(3) && nodes.len() > 1 {
+        if wild && r.one_in(3) && nodes.len() > 1 {
             t += &format!("to_node = {}\n", ref_name(r, &nodes, tame));
         } else {
             let mut pool = bodies.clone();
             pool.push("ground".into());
             t += &format!("body = {}\n", ref_name(r, &pool, tame));
         }
-        let hinge = r.below(3) > 0;
+        let hinge = tame || r.below(3) > 0;
         t += &format!("type = \"{}\"\n", if hinge { "hinge" } else { "rigid" });
         if hinge || (wild && r.one_in(4)) {
             t += &format!("axis = {}\n", gen_vec(r, &params, false, tame));
@@ -601,10 +609,26 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     // sensors
     for i in 0..r.range(0, 4) {
         let name = if wild && r.one_in(5) { odd_name(r) } else { format!("s{i}") };
-        let kind = *r.pick(&[
-            "node", "position", "section", "hinge", "body", "direction", "energy", "driver",
-            "beam_nodes", "body_frame", "bogus",
-        ]);
+        let mut kinds = vec!["node", "position", "direction", "energy"];
+        if !tame || !beams.is_empty() {
+            kinds.extend(["section", "beam_nodes"]);
+        }
+        if !tame || !joints.is_empty() {
+            kinds.push("hinge");
+        }
+        if !tame || !bodies.is_empty() {
+            kinds.push("body");
+        }
+        if !tame {
+            kinds.push("body_frame");
+        }
+        if !tame || !driven.is_empty() {
+            kinds.push("driver");
+        }
+        if !tame {
+            kinds.push("bogus");
+        }
+        let kind = *r.pick(&kinds);
         t += &format!("[[sensors]]\nname = {}\ntype = \"{kind}\"\n", toml_str(&name));
         match kind {
             "node" | "position" => t += &format!("node = {}\n", ref_name(r, &nodes, tame)),
@@ -620,9 +644,17 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
                     t += &format!("frame = {}\n", toml_str(r.pick(&["local", "global"])));
                 }
             }
-            "beam_nodes" => t += &format!("beam = {}\ncomponent = {}\n", ref_name(r, &beams, tame), toml_str(r.pick(&["x", "y", "z", "w"]))),
+            "beam_nodes" => t += &format!("beam = {}\ncomponent = {}\n", ref_name(r, &beams, tame), toml_str(r.pick(if tame { &["x", "y", "z"][..] } else { &["x", "y", "z", "w"][..] }))),
             "hinge" => t += &format!("joint = {}\n", ref_name(r, &joints, tame)),
-            "body" | "body_frame" => t += &format!("body = {}\n", ref_name(r, &bodies, tame)),
+            "body" => t += &format!("body = {}\n", ref_name(r, &bodies, tame)),
+            "body_frame" => {
+                t += &format!(
+                    "body = {}\nnode = {}\ncomponent = {}\n",
+                    ref_name(r, &bodies, tame),
+                    ref_name(r, &nodes, tame),
+                    toml_str(r.pick(&["x", "y", "z", "q"]))
+                )
+            }
             "driver" => {
                 if let (false, Some((b, k))) = (driven.is_empty(), driven.first().cloned()) {
                     t += &format!("body = {}\ndof = {}\n", toml_str(&b), if wild && r.one_in(3) { gen_num(r, &params, false, false) } else { k.to_string() });
@@ -663,7 +695,8 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
             t += &format!("max_iter = {}\n", pick(r, "25", &["0", "1", "-1", "1.5", "1e9", "1e20", "nan"], &params));
         }
         if r.one_in(3) {
-            t += &format!("newton = {}\n", toml_str(r.pick(&["modified", "full", "quasi", ""])));
+            let choices: &[&str] = if tame { &["modified", "full"] } else { &["modified", "full", "quasi", ""] };
+            t += &format!("newton = {}\n", toml_str(r.pick(choices)));
         }
         if r.one_in(3) {
             t += &format!("load_steps = {}\n", pick(r, "2", &["0", "-1", "1.5", "1e4", "nan"], &params));
@@ -1183,6 +1216,25 @@ impl Outcome {
     }
 }
 
+/// The cause of a death by signal, from the child's stderr: the runtime's own message
+/// when there is one (allocation failure, stack overflow, a panic while panicking),
+/// else the last line.
+fn abort_reason(stderr: &str) -> String {
+    for key in ["memory allocation of", "has overflowed its stack", "panicked at", "fatal runtime error"] {
+        if let Some(l) = stderr.lines().find(|l| l.contains(key)) {
+            // the thread name and id vary: keep what follows them
+            let l = l.split_once("' (").map_or(l, |(_, r)| r.split_once(") ").map_or(r, |(_, x)| x));
+            let mut s = normalize(l);
+            if key == "panicked at" {
+                let msg = stderr.lines().skip_while(|x| !x.contains(key)).nth(1).unwrap_or("");
+                s = format!("{s} {}", normalize(msg));
+            }
+            return s;
+        }
+    }
+    normalize(stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or(""))
+}
+
 /// Digits replaced by `N`, so one cause with different sizes is one signature.
 fn normalize(s: &str) -> String {
     let mut o = String::new();
@@ -1334,8 +1386,17 @@ fn model_case_body(text: &str, set: &[(String, f64)], analysis: Analysis) -> &'s
     }
 }
 
-/// Worker main loop: one JSON case per stdin line, one reply line per case.
+/// Worker main loop: one JSON case per stdin line, one reply line per case. Runs on a
+/// thread with the 8 MiB stack of a CLI main thread, so recursion depth findings are the
+/// same in the test harness (2 MiB test threads), the example and the binary.
 pub fn worker_main() {
+    let t = std::thread::Builder::new().stack_size(8 << 20).spawn(worker_loop);
+    if let Ok(h) = t {
+        let _ = h.join();
+    }
+}
+
+fn worker_loop() {
     install_panic_hook();
     std::thread::spawn(|| loop {
         std::thread::sleep(Duration::from_millis(100));
@@ -1459,7 +1520,11 @@ impl Worker {
                 let _ = self.child.wait();
                 Err(Outcome {
                     class: "hang".into(),
-                    sig: format!("hang: in-process case over {} s", limit.as_secs()),
+                    sig: format!(
+                        "hang: in-process {} over {} s",
+                        case.to_json()["analysis"].as_str().unwrap_or("?"),
+                        limit.as_secs()
+                    ),
                     detail: String::new(),
                 })
             }
@@ -1468,7 +1533,6 @@ impl Worker {
                 // the stderr reader may still be draining the last lines
                 std::thread::sleep(Duration::from_millis(50));
                 let tail = self.stderr_tail.lock().map(|g| g.clone()).unwrap_or_default();
-                let last = tail.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").to_string();
                 let how = match status {
                     Ok(s) => {
                         use std::os::unix::process::ExitStatusExt;
@@ -1481,7 +1545,7 @@ impl Worker {
                 };
                 Err(Outcome {
                     class: "abort".into(),
-                    sig: format!("abort ({how}): {}", normalize(&last)),
+                    sig: format!("abort ({how}): {}", abort_reason(&tail)),
                     detail: tail,
                 })
             }
@@ -1543,10 +1607,9 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
     let verb = args.first().cloned().unwrap_or_default();
     use std::os::unix::process::ExitStatusExt;
     if let Some(sig) = status.signal() {
-        let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
         return Outcome {
             class: "abort".into(),
-            sig: format!("abort (cli {verb}, signal {sig}): {}", normalize(last)),
+            sig: format!("abort (cli {verb}, signal {sig}): {}", abort_reason(&err)),
             detail: err,
         };
     }
@@ -1667,6 +1730,9 @@ fn record(rep: &mut Report, cfg: &Config, case: &Case, o: &Outcome) {
         let _ = std::fs::create_dir_all(&cfg.out);
         let mut v = case.to_json();
         v["finding"] = json!(o.sig);
+        if !o.detail.is_empty() {
+            v["stderr_tail"] = json!(o.detail.chars().rev().take(3000).collect::<String>().chars().rev().collect::<String>());
+        }
         let _ = std::fs::write(&p, serde_json::to_string_pretty(&v).unwrap_or_default());
         if cfg.progress {
             eprintln!("finding: {} -> {}", o.sig, p.display());
