@@ -6,7 +6,8 @@
 //!
 //! Environment: `LATDYN_FUZZ_SECS` (duration), `LATDYN_FUZZ_SEED` (default: from the clock,
 //! printed, so CI explores new cases on every run and a finding can be regenerated),
-//! `LATDYN_FUZZ_OUT` (where finding inputs are written).
+//! `LATDYN_FUZZ_OUT` (where finding inputs are written), `LATDYN_FUZZ_CLI_EVERY` (one case
+//! in K runs the binary), `LATDYN_FUZZ_REGRESSIONS` (replay another directory).
 
 #[path = "fuzz/gen.rs"]
 mod gen;
@@ -33,7 +34,8 @@ fn config(seed: u64, duration: Option<Duration>, cases: u64) -> gen::Config {
         seed,
         cases,
         duration,
-        cli_every: 50,
+        // LATDYN_FUZZ_CLI_EVERY: one case in K is a CLI case (default 50)
+        cli_every: std::env::var("LATDYN_FUZZ_CLI_EVERY").ok().and_then(|s| s.parse().ok()).unwrap_or(50),
         bin: Some(PathBuf::from(env!("CARGO_BIN_EXE_latdyn"))),
         worker_cmd: vec![
             exe.display().to_string(),
@@ -125,4 +127,37 @@ fn tame_generated_models_mostly_compile() {
     }
     eprintln!("{ok} of {n} tame generated models compile");
     assert!(ok * 2 >= n, "only {ok} of {n} tame generated models compile");
+}
+
+/// The CLI oracle, checked on a stand-in binary (`/bin/sh -c SCRIPT`) whose exit is known:
+/// each finding class is reported, and the accepted exits are not.
+#[test]
+fn cli_oracle_classifies_exit_codes_signals_hangs_and_json() {
+    if std::env::var_os(gen::WORKER_ENV).is_some() {
+        return;
+    }
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fuzz-oracle");
+    let sh = std::path::Path::new("/bin/sh");
+    let judge = |script: &str, json: bool, limit: u64| {
+        let mut args = vec!["-c".to_string(), script.to_string()];
+        if json {
+            args.push("--json".into()); // becomes $0 of the script
+        }
+        let case = gen::Case::Cli { args, files: vec![] };
+        gen::run_cli_case(sh, &case, &dir, Duration::from_secs(limit)).class
+    };
+    for code in [0, 2, 3, 4, 5] {
+        assert_eq!(judge(&format!("exit {code}"), false, 20), format!("cli_exit_{code}"));
+    }
+    assert_eq!(judge("exit 70", false, 20), "internal_error");
+    assert_eq!(judge("exit 101", false, 20), "panic");
+    assert_eq!(judge("exit 1", false, 20), "bad_exit");
+    assert_eq!(judge("kill -ABRT $$", false, 20), "abort");
+    assert_eq!(judge("kill -KILL $$", false, 20), "abort");
+    assert_eq!(judge("sleep 5", false, 1), "hang");
+    assert_eq!(judge("echo '{\"a\": 1}'", true, 20), "cli_exit_0");
+    assert_eq!(judge("echo 'not json'", true, 20), "bad_json");
+    assert_eq!(judge("echo '{\"a\": 1}'; echo '{}'", true, 20), "bad_json");
+    // a failed --json command may print anything
+    assert_eq!(judge("echo 'not json'; exit 2", true, 20), "cli_exit_2");
 }
