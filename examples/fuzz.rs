@@ -33,7 +33,10 @@ fn main() -> ExitCode {
     let mut out = PathBuf::from("fuzz-out");
     let mut seconds: Option<f64> = None;
     let mut cli_every: u64 = 50;
-    let mut bin: Option<PathBuf> = exe.parent().and_then(|p| p.parent()).map(|p| p.join("latdyn"));
+    let mut bin: Option<PathBuf> = exe
+        .parent()
+        .and_then(|p| p.parent())
+        .map(|p| p.join("latdyn"));
     let mut one_case: Option<PathBuf> = None;
     let mut replay = true;
     let mut it = args.iter().skip(1);

@@ -35,7 +35,10 @@ fn config(seed: u64, duration: Option<Duration>, cases: u64) -> gen::Config {
         cases,
         duration,
         // LATDYN_FUZZ_CLI_EVERY: one case in K is a CLI case (default 50)
-        cli_every: std::env::var("LATDYN_FUZZ_CLI_EVERY").ok().and_then(|s| s.parse().ok()).unwrap_or(50),
+        cli_every: std::env::var("LATDYN_FUZZ_CLI_EVERY")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(50),
         bin: Some(PathBuf::from(env!("CARGO_BIN_EXE_latdyn"))),
         worker_cmd: vec![
             exe.display().to_string(),
@@ -60,29 +63,46 @@ fn fuzz_regressions_and_time_boxed_run_find_no_panic_abort_or_hang() {
     // a campaign with LATDYN_FUZZ_SECS=0)
     let dir = std::env::var_os("LATDYN_FUZZ_REGRESSIONS")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions"));
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions")
+        });
     let regressions = gen::load_cases(&dir).expect("regression inputs parse");
     let mut failed = Vec::new();
     // each regression input alone, so a failure names its file
     for (path, case) in &regressions {
-        let rep = gen::campaign(&config(0, None, 0), std::slice::from_ref(case)).expect("fuzz worker starts");
+        let rep = gen::campaign(&config(0, None, 0), std::slice::from_ref(case))
+            .expect("fuzz worker starts");
         match rep.findings.keys().next() {
             Some(sig) => failed.push(format!("{}: {sig}", path.display())),
-            None => eprintln!("  ok {} ({:?})", path.display(), rep.classes.keys().collect::<Vec<_>>()),
+            None => eprintln!(
+                "  ok {} ({:?})",
+                path.display(),
+                rep.classes.keys().collect::<Vec<_>>()
+            ),
         }
     }
-    eprintln!("fuzz: {} regression inputs replayed, {} failed", regressions.len(), failed.len());
+    eprintln!(
+        "fuzz: {} regression inputs replayed, {} failed",
+        regressions.len(),
+        failed.len()
+    );
     for f in &failed {
         eprintln!("  FAILED {f}");
     }
 
-    let secs: f64 = std::env::var("LATDYN_FUZZ_SECS").ok().and_then(|s| s.parse().ok()).unwrap_or(60.0);
-    let seed: u64 = std::env::var("LATDYN_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or_else(|| {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_secs())
-            .unwrap_or(1)
-    });
+    let secs: f64 = std::env::var("LATDYN_FUZZ_SECS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(60.0);
+    let seed: u64 = std::env::var("LATDYN_FUZZ_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(1)
+        });
     eprintln!("fuzz: seed {seed} (LATDYN_FUZZ_SEED={seed} repeats this run), {secs} s");
     let cfg = config(seed, Some(Duration::from_secs_f64(secs)), u64::MAX / 2);
     let rep = gen::campaign(&cfg, &[]).expect("fuzz worker starts");
@@ -115,18 +135,26 @@ fn tame_generated_models_mostly_compile() {
             Ok(_) => ok += 1,
             Err(e) => {
                 let msg = e.to_string();
-                let key = msg.split_once(": ").map_or(msg.as_str(), |x| x.1).chars().take(90).collect::<String>();
+                let key = msg
+                    .split_once(": ")
+                    .map_or(msg.as_str(), |x| x.1)
+                    .chars()
+                    .take(90)
+                    .collect::<String>();
                 *errors.entry(key).or_default() += 1;
             }
         }
     }
     let mut top: Vec<_> = errors.into_iter().collect();
-    top.sort_by(|a, b| b.1.cmp(&a.1));
+    top.sort_by_key(|b| std::cmp::Reverse(b.1));
     for (m, c) in top.iter().take(12) {
         eprintln!("{c:>4} × {m}");
     }
     eprintln!("{ok} of {n} tame generated models compile");
-    assert!(ok * 2 >= n, "only {ok} of {n} tame generated models compile");
+    assert!(
+        ok * 2 >= n,
+        "only {ok} of {n} tame generated models compile"
+    );
 }
 
 /// The CLI oracle, checked on a stand-in binary (`/bin/sh -c SCRIPT`) whose exit is known:
@@ -143,11 +171,17 @@ fn cli_oracle_classifies_exit_codes_signals_hangs_and_json() {
         if json {
             args.push("--json".into()); // becomes $0 of the script
         }
-        let case = gen::Case::Cli { args, files: vec![] };
+        let case = gen::Case::Cli {
+            args,
+            files: vec![],
+        };
         gen::run_cli_case(sh, &case, &dir, Duration::from_secs(limit)).class
     };
     for code in [0, 2, 3, 4, 5] {
-        assert_eq!(judge(&format!("exit {code}"), false, 20), format!("cli_exit_{code}"));
+        assert_eq!(
+            judge(&format!("exit {code}"), false, 20),
+            format!("cli_exit_{code}")
+        );
     }
     assert_eq!(judge("exit 70", false, 20), "internal_error");
     assert_eq!(judge("exit 101", false, 20), "panic");

@@ -158,9 +158,7 @@ impl Case {
                 let mut set = Vec::new();
                 for p in v["set"].as_array().ok_or("set: expected an array")? {
                     let name = s(&p[0])?;
-                    let val: f64 = s(&p[1])?
-                        .parse()
-                        .map_err(|e| format!("set value: {e}"))?;
+                    let val: f64 = s(&p[1])?.parse().map_err(|e| format!("set value: {e}"))?;
                     set.push((name, val));
                 }
                 Ok(Case::Model {
@@ -198,10 +196,37 @@ impl Case {
 /// Numbers that break arithmetic: zeros of both signs, the extremes of f64, subnormals,
 /// NaN, infinities, the i64 edges, a literal past i64, and plain values.
 const NUM_LITERALS: &[&str] = &[
-    "0", "-0.0", "1", "-1", "0.5", "2", "3", "1.5", "-2.5", "1e308", "-1e308", "1.7976931348623157e308",
-    "1e-308", "5e-324", "-1e-308", "nan", "-nan", "inf", "-inf", "+inf", "9223372036854775807",
-    "-9223372036854775808", "99999999999999999999", "1e20", "1e9", "1e-9", "1e-12", "1e6",
-    "123456.789", "0.0001", "1e400",
+    "0",
+    "-0.0",
+    "1",
+    "-1",
+    "0.5",
+    "2",
+    "3",
+    "1.5",
+    "-2.5",
+    "1e308",
+    "-1e308",
+    "1.7976931348623157e308",
+    "1e-308",
+    "5e-324",
+    "-1e-308",
+    "nan",
+    "-nan",
+    "inf",
+    "-inf",
+    "+inf",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "99999999999999999999",
+    "1e20",
+    "1e9",
+    "1e-9",
+    "1e-12",
+    "1e6",
+    "123456.789",
+    "0.0001",
+    "1e400",
 ];
 
 /// Names that are not plain identifiers: unicode, path separators, NUL, control
@@ -236,7 +261,9 @@ pub fn toml_str(s: impl AsRef<str>) -> String {
         match c {
             '"' => o.push_str("\\\""),
             '\\' => o.push_str("\\\\"),
-            c if (c as u32) < 0x20 || c as u32 == 0x7f => o.push_str(&format!("\\u{:04X}", c as u32)),
+            c if (c as u32) < 0x20 || c as u32 == 0x7f => {
+                o.push_str(&format!("\\u{:04X}", c as u32))
+            }
             c => o.push(c),
         }
     }
@@ -259,7 +286,9 @@ pub fn gen_expr(r: &mut Rng, names: &[String], time: bool, depth: u32) -> String
             3 => r.pick(NUM_LITERALS).to_string(),
             4 if time => "t".into(),
             5 if !names.is_empty() => r.pick(names).clone(),
-            6 => r.pick(&["pi", "PI", "E", "e", "undefined_name", "x1", "Ω"]).to_string(),
+            6 => r
+                .pick(&["pi", "PI", "E", "e", "undefined_name", "x1", "Ω"])
+                .to_string(),
             7 => format!("{}e{}", r.range(1, 9), r.range(0, 400) as i64 - 200),
             _ => "1".into(),
         };
@@ -285,9 +314,23 @@ pub fn gen_expr(r: &mut Rng, names: &[String], time: bool, depth: u32) -> String
         9 => format!("-{}", gen_expr(r, names, time, d)),
         10 => r
             .pick(&[
-                "1/0", "0/0", "-1/0", "1e308*10", "sqrt(-1)", "ln(0)", "0^0", "0^-1", "(-8)^(1/3)",
-                "acos(2)", "t/0", "1/t", "exp(1000)", "exp(t*1e6)", "max(0, min(t, 2 - t))",
-                "atan2(1, min(t, 1))", "min(max(t,1),max(t,2))",
+                "1/0",
+                "0/0",
+                "-1/0",
+                "1e308*10",
+                "sqrt(-1)",
+                "ln(0)",
+                "0^0",
+                "0^-1",
+                "(-8)^(1/3)",
+                "acos(2)",
+                "t/0",
+                "1/t",
+                "exp(1000)",
+                "exp(t*1e6)",
+                "max(0, min(t, 2 - t))",
+                "atan2(1, min(t, 1))",
+                "min(max(t,1),max(t,2))",
             ])
             .to_string(),
         11 => {
@@ -302,9 +345,29 @@ pub fn gen_expr(r: &mut Rng, names: &[String], time: bool, depth: u32) -> String
         }
         _ => r
             .pick(&[
-                "", " ", "(", ")", "1 +", "sin", "sin()", "min(1)", "min(1,2,3)", ",", "1,2",
-                "t t", "2**3", "1e", "e1e", "--1", "!t", "sin(t", "max(0, min(t, 2 - t)",
-                "\u{0}", "𝛑", "t^^2", "[1]",
+                "",
+                " ",
+                "(",
+                ")",
+                "1 +",
+                "sin",
+                "sin()",
+                "min(1)",
+                "min(1,2,3)",
+                ",",
+                "1,2",
+                "t t",
+                "2**3",
+                "1e",
+                "e1e",
+                "--1",
+                "!t",
+                "sin(t",
+                "max(0, min(t, 2 - t)",
+                "\u{0}",
+                "𝛑",
+                "t^^2",
+                "[1]",
             ])
             .to_string(),
     }
@@ -316,10 +379,13 @@ fn gen_num(r: &mut Rng, names: &[String], time: bool, tame: bool) -> String {
         return format!("{}", r.range(1, 20) as f64 / 10.0);
     }
     match r.below(10) {
-        0..=3 => format!("{}", (r.unit() * 4.0 - 1.0) * 10f64.powi(r.range(0, 3) as i32)),
+        0..=3 => format!(
+            "{}",
+            (r.unit() * 4.0 - 1.0) * 10f64.powi(r.range(0, 3) as i32)
+        ),
         4..=5 => r.pick(NUM_LITERALS).to_string(),
         6 if !names.is_empty() => toml_str(r.pick(names)),
-        _ => toml_str(&gen_expr(r, names, time, 0)),
+        _ => toml_str(gen_expr(r, names, time, 0)),
     }
 }
 
@@ -327,8 +393,17 @@ fn gen_vec(r: &mut Rng, names: &[String], time: bool, tame: bool) -> String {
     if !tame && r.one_in(12) {
         return r
             .pick(&[
-                "[]", "[1, 2]", "[1, 2, 3, 4]", "[[1], 2, 3]", "\"1\"", "[1e308, 1e308, 0]",
-                "[0, 0, 0]", "[nan, 0, 0]", "[inf, -inf, 0]", "[1e-308, 1e-308, 1e-308]", "{}",
+                "[]",
+                "[1, 2]",
+                "[1, 2, 3, 4]",
+                "[[1], 2, 3]",
+                "\"1\"",
+                "[1e308, 1e308, 0]",
+                "[0, 0, 0]",
+                "[nan, 0, 0]",
+                "[inf, -inf, 0]",
+                "[1e-308, 1e-308, 1e-308]",
+                "{}",
                 "[true, 1, 2]",
             ])
             .to_string();
@@ -344,7 +419,7 @@ fn gen_vec(r: &mut Rng, names: &[String], time: bool, tame: bool) -> String {
 /// A name from `pool`, or now and then an odd or unknown one.
 fn ref_name(r: &mut Rng, pool: &[String], tame: bool) -> String {
     if pool.is_empty() || (!tame && r.one_in(15)) {
-        return toml_str(&odd_name(r));
+        return toml_str(odd_name(r));
     }
     toml_str(r.pick(pool))
 }
@@ -361,7 +436,9 @@ fn gen_elements(r: &mut Rng, names: &[String], tame: bool) -> String {
         4 => "inf".into(),
         // the known resource defects (issue 15: elements = 1e20 panics, 1e9 aborts);
         // rarer than the rest so a campaign spends its time elsewhere
-        5 if r.one_in(8) => r.pick(&["1e20", "1e9", "99999999999999999999", "1e8"]).to_string(),
+        5 if r.one_in(8) => r
+            .pick(&["1e20", "1e9", "99999999999999999999", "1e8"])
+            .to_string(),
         6 => "\"elements\"".into(),
         7 => format!("{}", r.range(7, 60)),
         8 if !names.is_empty() => toml_str(r.pick(names)),
@@ -381,7 +458,14 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     let wild = !tame;
     if r.one_in(3) {
         t += "[model]\n";
-        t += &format!("name = {}\n", toml_str(&if wild && r.one_in(3) { odd_name(r) } else { "fuzz".into() }));
+        t += &format!(
+            "name = {}\n",
+            toml_str(&if wild && r.one_in(3) {
+                odd_name(r)
+            } else {
+                "fuzz".into()
+            })
+        );
         if r.one_in(2) {
             t += "description = \"generated\"\n";
         }
@@ -394,14 +478,23 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     }
     for i in 0..np {
         let name = if wild && r.one_in(10) {
-            r.pick(&["t", "sin", "min1", "maxx", "atan2y", "pi", "E", "e", "1x", "a-b", "ü", "elements"])
-                .to_string()
+            r.pick(&[
+                "t", "sin", "min1", "maxx", "atan2y", "pi", "E", "e", "1x", "a-b", "ü", "elements",
+            ])
+            .to_string()
         } else {
-            r.pick(&["L", "EI", "EA", "GJ", "rhoA", "P", "omega", "T", "elements", "n", "k", "m", "g"])
-                .to_string()
-                + &if tame || r.one_in(2) { format!("{i}") } else { String::new() }
+            r.pick(&[
+                "L", "EI", "EA", "GJ", "rhoA", "P", "omega", "T", "elements", "n", "k", "m", "g",
+            ])
+            .to_string()
+                + &if tame || r.one_in(2) {
+                    format!("{i}")
+                } else {
+                    String::new()
+                }
         };
-        let key = if name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') && !name.is_empty() {
+        let key = if name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') && !name.is_empty()
+        {
             name.clone()
         } else {
             toml_str(&name)
@@ -418,11 +511,20 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     let mut sections: Vec<String> = vec!["main".into()];
     if r.one_in(3) {
         t += "[materials.steel]\n";
-        t += &format!("E = {}\nG = {}\ndensity = {}\n", gen_num(r, &params, false, tame), gen_num(r, &params, false, tame), gen_num(r, &params, false, tame));
+        t += &format!(
+            "E = {}\nG = {}\ndensity = {}\n",
+            gen_num(r, &params, false, tame),
+            gen_num(r, &params, false, tame),
+            gen_num(r, &params, false, tame)
+        );
     }
     let ns = if wild { r.range(0, 2) } else { 1 };
     for k in 0..ns.max(usize::from(tame)) {
-        let name = if k == 0 { "main".to_string() } else { format!("s{k}") };
+        let name = if k == 0 {
+            "main".to_string()
+        } else {
+            format!("s{k}")
+        };
         sections.push(name.clone());
         t += &format!("[sections.{name}]\n");
         if wild && r.one_in(4) {
@@ -453,10 +555,19 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     let nn = if tame { r.range(2, 4) } else { r.range(0, 5) };
     let mut nodes: Vec<String> = Vec::new();
     for i in 0..nn {
-        let name = if wild && r.one_in(12) { odd_name(r) } else { format!("n{i}") };
+        let name = if wild && r.one_in(12) {
+            odd_name(r)
+        } else {
+            format!("n{i}")
+        };
         let pos = if tame || r.below(3) > 0 {
             // spread out so beams have length
-            format!("[{}, {}, {}]", i as f64 + r.unit(), r.unit() * 0.1, r.unit() * 0.1)
+            format!(
+                "[{}, {}, {}]",
+                i as f64 + r.unit(),
+                r.unit() * 0.1,
+                r.unit() * 0.1
+            )
         } else {
             gen_vec(r, &params, false, tame)
         };
@@ -467,7 +578,11 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     let nb = if tame { nn - 1 } else { r.range(0, 4) };
     let mut beams: Vec<String> = Vec::new();
     for i in 0..nb {
-        let name = if wild && r.one_in(12) { odd_name(r) } else { format!("b{i}") };
+        let name = if wild && r.one_in(12) {
+            odd_name(r)
+        } else {
+            format!("b{i}")
+        };
         let (from, to) = if tame {
             (i, i + 1)
         } else if r.below(3) > 0 {
@@ -480,8 +595,8 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
         t += &format!(
             "[[beams]]\nname = {}\nfrom = {}\nto = {}\nelements = {}\nsection = {}\n",
             toml_str(&name),
-            toml_str(&nm(from)),
-            toml_str(&nm(to)),
+            toml_str(nm(from)),
+            toml_str(nm(to)),
             gen_elements(r, &params, tame),
             ref_name(r, &sections, tame)
         );
@@ -495,7 +610,10 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     }
     // supports
     if !nodes.is_empty() && (tame || r.below(4) > 0) {
-        t += &format!("[[supports]]\nnode = {}\ntype = \"clamped\"\n", toml_str(&nodes[0]));
+        t += &format!(
+            "[[supports]]\nnode = {}\ntype = \"clamped\"\n",
+            toml_str(&nodes[0])
+        );
     }
     if wild && r.one_in(3) {
         t += &format!(
@@ -514,17 +632,30 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
             t += &format!("moment = {}\n", gen_vec(r, &params, false, tame));
         }
         if r.one_in(3) {
-            t += &format!("scale = {}\n", if tame { "\"min(t, 1)\"".into() } else { toml_str(&gen_expr(r, &params, true, 0)) });
+            t += &format!(
+                "scale = {}\n",
+                if tame {
+                    "\"min(t, 1)\"".into()
+                } else {
+                    toml_str(gen_expr(r, &params, true, 0))
+                }
+            );
         }
         if wild && r.one_in(8) {
             t += "follower = true\n";
         }
     }
     if r.one_in(3) {
-        t += &format!("[environment]\ngravity = {}\n", gen_vec(r, &params, false, tame));
+        t += &format!(
+            "[environment]\ngravity = {}\n",
+            gen_vec(r, &params, false, tame)
+        );
     }
     if wild && r.one_in(8) {
-        t += &format!("[initial]\nangular_velocity = {}\n", gen_vec(r, &params, false, false));
+        t += &format!(
+            "[initial]\nangular_velocity = {}\n",
+            gen_vec(r, &params, false, false)
+        );
         if r.one_in(2) {
             t += &format!("center = {}\n", gen_vec(r, &params, false, false));
         }
@@ -533,8 +664,16 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     let mut bodies: Vec<String> = Vec::new();
     let mut driven: Vec<(String, usize)> = Vec::new();
     for i in 0..r.range(0, if tame { 1 } else { 2 }) {
-        let name = if wild && r.one_in(12) { odd_name(r) } else { format!("body{i}") };
-        t += &format!("[[bodies]]\nname = {}\nposition = {}\n", toml_str(&name), gen_vec(r, &params, false, tame));
+        let name = if wild && r.one_in(12) {
+            odd_name(r)
+        } else {
+            format!("body{i}")
+        };
+        t += &format!(
+            "[[bodies]]\nname = {}\nposition = {}\n",
+            toml_str(&name),
+            gen_vec(r, &params, false, tame)
+        );
         if tame || r.below(4) > 0 {
             t += &format!("mass = {}\n", gen_num(r, &params, false, tame));
         }
@@ -567,14 +706,25 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
                 t += &format!("  axis = {}\n", gen_vec(r, &params, false, tame));
             }
             if r.one_in(2) && !(tame && kind == "free_rotation") {
-                let d = if tame { "\"0.1*t\"".to_string() } else { toml_str(&gen_expr(r, &params, true, 0)) };
+                let d = if tame {
+                    "\"0.1*t\"".to_string()
+                } else {
+                    toml_str(gen_expr(r, &params, true, 0))
+                };
                 t += &format!("  drive = {d}\n");
                 driven.push((name.clone(), k));
             } else if r.one_in(2) && !(tame && kind == "free_rotation") {
                 t += &format!("  initial = {}\n", gen_num(r, &params, false, tame));
             }
             if wild && r.one_in(3) {
-                t += &format!("  initial_rate = {}\n", if kind == "free_rotation" { gen_vec(r, &params, false, false) } else { gen_num(r, &params, false, false) });
+                t += &format!(
+                    "  initial_rate = {}\n",
+                    if kind == "free_rotation" {
+                        gen_vec(r, &params, false, false)
+                    } else {
+                        gen_num(r, &params, false, false)
+                    }
+                );
             }
         }
         bodies.push(name);
@@ -583,10 +733,33 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     let mut joints: Vec<String> = Vec::new();
     // tame: at most one joint, on the free end, to a body or the ground (node 0 is
     // clamped, and a node-to-node hinge needs two nodes at one position)
-    for i in 0..r.range(0, if nodes.len() > 1 { if tame { 1 } else { 2 } } else { 0 }) {
-        let name = if wild && r.one_in(12) { odd_name(r) } else { format!("j{i}") };
-        let node = if tame { nodes[nodes.len() - 1].clone() } else { nodes[nodes.len() - 1 - r.below(nodes.len().min(2))].clone() };
-        t += &format!("[[joints]]\nname = {}\nnode = {}\n", toml_str(&name), toml_str(&node));
+    for i in 0..r.range(
+        0,
+        if nodes.len() > 1 {
+            if tame {
+                1
+            } else {
+                2
+            }
+        } else {
+            0
+        },
+    ) {
+        let name = if wild && r.one_in(12) {
+            odd_name(r)
+        } else {
+            format!("j{i}")
+        };
+        let node = if tame {
+            nodes[nodes.len() - 1].clone()
+        } else {
+            nodes[nodes.len() - 1 - r.below(nodes.len().min(2))].clone()
+        };
+        t += &format!(
+            "[[joints]]\nname = {}\nnode = {}\n",
+            toml_str(&name),
+            toml_str(&node)
+        );
         if wild && r.one_in(3) && nodes.len() > 1 {
             t += &format!("to_node = {}\n", ref_name(r, &nodes, tame));
         } else {
@@ -599,7 +772,13 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
         if hinge || (wild && r.one_in(4)) {
             t += &format!("axis = {}\n", gen_vec(r, &params, false, tame));
         }
-        for key in ["stiffness", "damping", "lock_angle", "lock_time", "initial_rate"] {
+        for key in [
+            "stiffness",
+            "damping",
+            "lock_angle",
+            "lock_time",
+            "initial_rate",
+        ] {
             if r.one_in(4) {
                 t += &format!("{key} = {}\n", gen_num(r, &params, false, tame));
             }
@@ -608,7 +787,11 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
     }
     // sensors
     for i in 0..r.range(0, 4) {
-        let name = if wild && r.one_in(5) { odd_name(r) } else { format!("s{i}") };
+        let name = if wild && r.one_in(5) {
+            odd_name(r)
+        } else {
+            format!("s{i}")
+        };
         let mut kinds = vec!["node", "position", "direction", "energy"];
         if !tame || !beams.is_empty() {
             kinds.extend(["section", "beam_nodes"]);
@@ -629,22 +812,50 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
             kinds.push("bogus");
         }
         let kind = *r.pick(&kinds);
-        t += &format!("[[sensors]]\nname = {}\ntype = \"{kind}\"\n", toml_str(&name));
+        t += &format!(
+            "[[sensors]]\nname = {}\ntype = \"{kind}\"\n",
+            toml_str(&name)
+        );
         match kind {
             "node" | "position" => t += &format!("node = {}\n", ref_name(r, &nodes, tame)),
             "direction" => {
-                t += &format!("node = {}\ndirection = {}\n", ref_name(r, &nodes, tame), gen_vec(r, &params, false, tame))
+                t += &format!(
+                    "node = {}\ndirection = {}\n",
+                    ref_name(r, &nodes, tame),
+                    gen_vec(r, &params, false, tame)
+                )
             }
             "section" => {
-                t += &format!("beam = {}\nat = {}\n", ref_name(r, &beams, tame), if tame { format!("{}", r.unit()) } else { gen_num(r, &params, false, false) });
+                t += &format!(
+                    "beam = {}\nat = {}\n",
+                    ref_name(r, &beams, tame),
+                    if tame {
+                        format!("{}", r.unit())
+                    } else {
+                        gen_num(r, &params, false, false)
+                    }
+                );
                 if r.one_in(2) {
-                    t += &format!("component = {}\n", toml_str(r.pick(&["N", "Vy", "Vz", "T", "My", "Mz", "Q", ""])));
+                    t += &format!(
+                        "component = {}\n",
+                        toml_str(r.pick(&["N", "Vy", "Vz", "T", "My", "Mz", "Q", ""]))
+                    );
                 }
                 if r.one_in(5) {
                     t += &format!("frame = {}\n", toml_str(r.pick(&["local", "global"])));
                 }
             }
-            "beam_nodes" => t += &format!("beam = {}\ncomponent = {}\n", ref_name(r, &beams, tame), toml_str(r.pick(if tame { &["x", "y", "z"][..] } else { &["x", "y", "z", "w"][..] }))),
+            "beam_nodes" => {
+                t += &format!(
+                    "beam = {}\ncomponent = {}\n",
+                    ref_name(r, &beams, tame),
+                    toml_str(r.pick(if tame {
+                        &["x", "y", "z"][..]
+                    } else {
+                        &["x", "y", "z", "w"][..]
+                    }))
+                )
+            }
             "hinge" => t += &format!("joint = {}\n", ref_name(r, &joints, tame)),
             "body" => t += &format!("body = {}\n", ref_name(r, &bodies, tame)),
             "body_frame" => {
@@ -657,9 +868,21 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
             }
             "driver" => {
                 if let (false, Some((b, k))) = (driven.is_empty(), driven.first().cloned()) {
-                    t += &format!("body = {}\ndof = {}\n", toml_str(&b), if wild && r.one_in(3) { gen_num(r, &params, false, false) } else { k.to_string() });
+                    t += &format!(
+                        "body = {}\ndof = {}\n",
+                        toml_str(&b),
+                        if wild && r.one_in(3) {
+                            gen_num(r, &params, false, false)
+                        } else {
+                            k.to_string()
+                        }
+                    );
                 } else {
-                    t += &format!("body = {}\ndof = {}\n", ref_name(r, &bodies, tame), gen_num(r, &params, false, tame));
+                    t += &format!(
+                        "body = {}\ndof = {}\n",
+                        ref_name(r, &bodies, tame),
+                        gen_num(r, &params, false, tame)
+                    );
                 }
             }
             _ => {}
@@ -679,37 +902,77 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
                 tame_v.to_string()
             }
         };
-        let x = &["0", "-1", "1e-300", "nan", "inf", "1e300", "5e-324", "1e-9", "1"];
+        let x = &[
+            "0", "-1", "1e-300", "nan", "inf", "1e300", "5e-324", "1e-9", "1",
+        ];
         t += &format!("t_end = {}\n", pick(r, "0.02", x, &params));
         t += &format!("dt = {}\n", pick(r, "0.005", x, &params));
         if r.one_in(2) {
             t += &format!("output_dt = {}\n", pick(r, "0.01", x, &params));
         }
         if r.one_in(2) {
-            t += &format!("rho_inf = {}\n", pick(r, "0.9", &["0", "1", "2", "-1", "nan", "0.5"], &params));
+            t += &format!(
+                "rho_inf = {}\n",
+                pick(r, "0.9", &["0", "1", "2", "-1", "nan", "0.5"], &params)
+            );
         }
         if r.one_in(2) {
-            t += &format!("tol = {}\n", pick(r, "1e-8", &["2", "1e300", "0", "1e-300", "-1", "nan", "1e-16"], &params));
+            t += &format!(
+                "tol = {}\n",
+                pick(
+                    r,
+                    "1e-8",
+                    &["2", "1e300", "0", "1e-300", "-1", "nan", "1e-16"],
+                    &params
+                )
+            );
         }
         if r.one_in(2) {
-            t += &format!("max_iter = {}\n", pick(r, "25", &["0", "1", "-1", "1.5", "1e9", "1e20", "nan"], &params));
+            t += &format!(
+                "max_iter = {}\n",
+                pick(
+                    r,
+                    "25",
+                    &["0", "1", "-1", "1.5", "1e9", "1e20", "nan"],
+                    &params
+                )
+            );
         }
         if r.one_in(3) {
-            let choices: &[&str] = if tame { &["modified", "full"] } else { &["modified", "full", "quasi", ""] };
+            let choices: &[&str] = if tame {
+                &["modified", "full"]
+            } else {
+                &["modified", "full", "quasi", ""]
+            };
             t += &format!("newton = {}\n", toml_str(r.pick(choices)));
         }
         if r.one_in(3) {
-            t += &format!("load_steps = {}\n", pick(r, "2", &["0", "-1", "1.5", "1e4", "nan"], &params));
+            t += &format!(
+                "load_steps = {}\n",
+                pick(r, "2", &["0", "-1", "1.5", "1e4", "nan"], &params)
+            );
         }
         if r.one_in(4) {
-            t += &format!("dt_min = {}\n", pick(r, "1e-9", &["0", "-1", "1", "nan", "1e-300"], &params));
+            t += &format!(
+                "dt_min = {}\n",
+                pick(r, "1e-9", &["0", "-1", "1", "nan", "1e-300"], &params)
+            );
         }
         if r.one_in(4) {
-            t += &format!("rayleigh_alpha = {}\nrayleigh_beta = {}\n", pick(r, "0.0", &["-1", "1e300", "nan"], &params), pick(r, "0.0", &["-1", "1e300", "nan"], &params));
+            t += &format!(
+                "rayleigh_alpha = {}\nrayleigh_beta = {}\n",
+                pick(r, "0.0", &["-1", "1e300", "nan"], &params),
+                pick(r, "0.0", &["-1", "1e300", "nan"], &params)
+            );
         }
     }
     if wild && r.one_in(20) {
-        t += *r.pick(&["unknown_key = 1\n", "[solver]\ndt = 1\n", "[[nodes]]\n", "[bogus]\nx = 1\n"]);
+        t += *r.pick(&[
+            "unknown_key = 1\n",
+            "[solver]\ndt = 1\n",
+            "[[nodes]]\n",
+            "[bogus]\nx = 1\n",
+        ]);
     }
     t
 }
@@ -823,7 +1086,9 @@ pub fn mutate_value(r: &mut Rng, text: &str, max_ops: usize) -> Option<String> {
         let (last, parent) = p.split_last()?;
         let op = r.below(9);
         if op <= 5 {
-            let Some(v) = get_mut(&mut root, &p) else { continue };
+            let Some(v) = get_mut(&mut root, &p) else {
+                continue;
+            };
             *v = match (op, &*v) {
                 (0..=2, toml::Value::Float(_) | toml::Value::Integer(_)) => extreme_value(r),
                 (0..=1, toml::Value::String(_)) => {
@@ -846,7 +1111,9 @@ pub fn mutate_value(r: &mut Rng, text: &str, max_ops: usize) -> Option<String> {
             };
             continue;
         }
-        let Some(container) = get_mut(&mut root, parent) else { continue };
+        let Some(container) = get_mut(&mut root, parent) else {
+            continue;
+        };
         match (op, last, container) {
             (6, Seg::Key(k), toml::Value::Table(t)) => {
                 t.remove(k);
@@ -856,7 +1123,10 @@ pub fn mutate_value(r: &mut Rng, text: &str, max_ops: usize) -> Option<String> {
             }
             (7, _, toml::Value::Table(t)) => {
                 t.insert(
-                    r.pick(&["unknown", "elements", "name", "dt", "axis", "drive", "mass", "node"]).to_string(),
+                    r.pick(&[
+                        "unknown", "elements", "name", "dt", "axis", "drive", "mass", "node",
+                    ])
+                    .to_string(),
                     other_type(r, &names),
                 );
             }
@@ -884,8 +1154,23 @@ pub fn mutate_bytes(r: &mut Rng, text: &str) -> String {
             }
             2 => {
                 let tok = *r.pick(&[
-                    "[", "]]", "=", "\"", "\n[[beams]]\n", "{", "}", "\n[parameters]\n", "#", "\\",
-                    "1e999", "'''", "\u{0}", "\n\n[solver]\nt_end = 1e300\n", ",", ".", "-",
+                    "[",
+                    "]]",
+                    "=",
+                    "\"",
+                    "\n[[beams]]\n",
+                    "{",
+                    "}",
+                    "\n[parameters]\n",
+                    "#",
+                    "\\",
+                    "1e999",
+                    "'''",
+                    "\u{0}",
+                    "\n\n[solver]\nt_end = 1e300\n",
+                    ",",
+                    ".",
+                    "-",
                 ]);
                 let i = r.below(n + 1);
                 b.splice(i..i, tok.bytes());
@@ -918,12 +1203,16 @@ pub fn mutate_bytes(r: &mut Rng, text: &str) -> String {
             }
             _ => {
                 // replace a digit run with an extreme literal
-                if let Some(i) = (0..8).map(|_| r.below(n.max(1))).find(|&i| b.get(i).is_some_and(u8::is_ascii_digit)) {
+                if let Some(i) = (0..8)
+                    .map(|_| r.below(n.max(1)))
+                    .find(|&i| b.get(i).is_some_and(u8::is_ascii_digit))
+                {
                     let mut j = i;
                     while j < b.len() && (b[j].is_ascii_digit() || b[j] == b'.') {
                         j += 1;
                     }
-                    let lit = *r.pick(&["1e308", "0", "99999999999999999999", "nan", "-1", "1e-308"]);
+                    let lit =
+                        *r.pick(&["1e308", "0", "99999999999999999999", "nan", "-1", "1e-308"]);
                     b.splice(i..j, lit.bytes());
                 }
             }
@@ -934,8 +1223,25 @@ pub fn mutate_bytes(r: &mut Rng, text: &str) -> String {
 
 fn extreme_f64(r: &mut Rng) -> f64 {
     *r.pick(&[
-        0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e308, -1e308, 1e-308, 5e-324, f64::NAN, f64::INFINITY,
-        f64::NEG_INFINITY, 1e20, 1e9, 1e6, 1e-9, 100.0, 3.0,
+        0.0,
+        -0.0,
+        1.0,
+        -1.0,
+        0.5,
+        2.0,
+        1e308,
+        -1e308,
+        1e-308,
+        5e-324,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        1e20,
+        1e9,
+        1e6,
+        1e-9,
+        100.0,
+        3.0,
     ])
 }
 
@@ -946,13 +1252,21 @@ pub fn seed_models() -> Vec<(String, String)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut out = Vec::new();
     for dir in ["models", "tests/models", "tests/bad_models"] {
-        let Ok(rd) = std::fs::read_dir(root.join(dir)) else { continue };
+        let Ok(rd) = std::fs::read_dir(root.join(dir)) else {
+            continue;
+        };
         let mut paths: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).collect();
         paths.sort();
         for p in paths {
             if p.extension().is_some_and(|e| e == "toml") {
                 if let Ok(t) = std::fs::read_to_string(&p) {
-                    out.push((p.file_name().unwrap_or_default().to_string_lossy().into_owned(), t));
+                    out.push((
+                        p.file_name()
+                            .unwrap_or_default()
+                            .to_string_lossy()
+                            .into_owned(),
+                        t,
+                    ));
                 }
             }
         }
@@ -1006,7 +1320,11 @@ pub fn gen_model_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
     let names = param_names(&text);
     if r.one_in(3) {
         for _ in 0..r.range(1, 2) {
-            let name = if names.is_empty() || r.one_in(10) { "nope".to_string() } else { r.pick(&names).clone() };
+            let name = if names.is_empty() || r.one_in(10) {
+                "nope".to_string()
+            } else {
+                r.pick(&names).clone()
+            };
             let mut v = extreme_f64(r);
             // the known resource defect; seldom, as in gen_elements
             if name == "elements" && v.abs() > 1e4 && !r.one_in(8) {
@@ -1015,7 +1333,11 @@ pub fn gen_model_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
             set.push((name, v));
         }
     }
-    Case::Model { text, set, analysis: pick_analysis(r) }
+    Case::Model {
+        text,
+        set,
+        analysis: pick_analysis(r),
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1028,7 +1350,12 @@ fn set_arg(r: &mut Rng, names: &[String]) -> String {
         r.pick(names).clone()
     };
     let v = match r.below(8) {
-        0 => r.pick(&["1e308", "-1e308", "nan", "inf", "1/0", "0/0", "", "=", "1e400", "2*pi", "t", "x", "1,2", "--json"]).to_string(),
+        0 => r
+            .pick(&[
+                "1e308", "-1e308", "nan", "inf", "1/0", "0/0", "", "=", "1e400", "2*pi", "t", "x",
+                "1,2", "--json",
+            ])
+            .to_string(),
         1 => gen_expr(r, &[], false, 2),
         _ => format!("{}", r.range(0, 30) as f64 / 10.0),
     };
@@ -1039,7 +1366,11 @@ fn set_arg(r: &mut Rng, names: &[String]) -> String {
 }
 
 fn vary_arg(r: &mut Rng, names: &[String]) -> String {
-    let name = if names.is_empty() || r.one_in(6) { "nope".to_string() } else { r.pick(names).clone() };
+    let name = if names.is_empty() || r.one_in(6) {
+        "nope".to_string()
+    } else {
+        r.pick(names).clone()
+    };
     let spec = match r.below(10) {
         0 => "1:2:0".to_string(),
         1 => "2:1:3".to_string(),
@@ -1077,7 +1408,18 @@ fn csv_text(r: &mut Rng, names: &[String]) -> String {
 /// for a hang; `check`, `statics` and `modes` also get mutated shipped models.
 pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
     let verb = *r.pick(&[
-        "check", "check", "statics", "modes", "run", "run", "sweep", "sweep", "sweep", "plot", "frobnicate", "",
+        "check",
+        "check",
+        "statics",
+        "modes",
+        "run",
+        "run",
+        "sweep",
+        "sweep",
+        "sweep",
+        "plot",
+        "frobnicate",
+        "",
     ]);
     let heavy = matches!(verb, "run" | "sweep");
     let model = if heavy || seeds.is_empty() || r.one_in(2) {
@@ -1096,17 +1438,42 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
         args.push(verb.into());
     }
     if verb == "plot" {
-        let bytes: String = (0..r.range(0, 600)).map(|_| (r.next_u64() as u8 & 0x7f) as char).collect();
-        files.push(("in.h5".into(), if r.one_in(3) { format!("\u{89}HDF\r\n\u{1a}\n{bytes}") } else { bytes }));
+        let bytes: String = (0..r.range(0, 600))
+            .map(|_| (r.next_u64() as u8 & 0x7f) as char)
+            .collect();
+        files.push((
+            "in.h5".into(),
+            if r.one_in(3) {
+                format!("\u{89}HDF\r\n\u{1a}\n{bytes}")
+            } else {
+                bytes
+            },
+        ));
         args.push(r.pick(&["in.h5", "missing.h5", "m.toml", "."]).to_string());
-        args.extend(["-o".to_string(), r.pick(&["p.svg", "p.png", "p.txt", "nodir/p.svg", "."]).to_string()]);
+        args.extend([
+            "-o".to_string(),
+            r.pick(&["p.svg", "p.png", "p.txt", "nodir/p.svg", "."])
+                .to_string(),
+        ]);
         match r.below(3) {
-            0 => args.extend(["--sensor".into(), r.pick(&["s0", "s0.x", "", "ü"]).to_string()]),
+            0 => args.extend([
+                "--sensor".into(),
+                r.pick(&["s0", "s0.x", "", "ü"]).to_string(),
+            ]),
             1 => args.extend(["--x".into(), "s0.x".into(), "--y".into(), "s0.y".into()]),
-            _ => args.extend(["--campbell".into(), "omega".into(), "--derived".into(), "f".into()]),
+            _ => args.extend([
+                "--campbell".into(),
+                "omega".into(),
+                "--derived".into(),
+                "f".into(),
+            ]),
         }
         if r.one_in(3) {
-            args.extend(["--size".into(), r.pick(&["0x0", "1x1", "100000x100000", "axb", "-1x5"]).to_string()]);
+            args.extend([
+                "--size".into(),
+                r.pick(&["0x0", "1x1", "100000x100000", "axb", "-1x5"])
+                    .to_string(),
+            ]);
         }
         if r.one_in(2) {
             args.push("--json".into());
@@ -1114,8 +1481,17 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
         return Case::Cli { args, files };
     }
     args.push(
-        r.pick(&["m.toml", "m.toml", "m.toml", "m.toml", "missing.toml", ".", "/dev/null", "sub"])
-            .to_string(),
+        r.pick(&[
+            "m.toml",
+            "m.toml",
+            "m.toml",
+            "m.toml",
+            "missing.toml",
+            ".",
+            "/dev/null",
+            "sub",
+        ])
+        .to_string(),
     );
     if r.below(3) > 0 {
         args.push("--json".into());
@@ -1126,10 +1502,17 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
     match verb {
         "modes" => {
             if r.one_in(2) {
-                args.extend(["--count".into(), r.pick(&["0", "1", "3", "1000000", "-1", "x"]).to_string()]);
+                args.extend([
+                    "--count".into(),
+                    r.pick(&["0", "1", "3", "1000000", "-1", "x"]).to_string(),
+                ]);
             }
             if r.one_in(3) {
-                args.extend(["--about".into(), r.pick(&["static", "reference", "auto", "bogus"]).to_string()]);
+                args.extend([
+                    "--about".into(),
+                    r.pick(&["static", "reference", "auto", "bogus"])
+                        .to_string(),
+                ]);
             }
             if r.one_in(3) {
                 args.push("--shapes".into());
@@ -1139,14 +1522,33 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
             }
         }
         "run" | "sweep" => {
-            args.extend(["--backend".into(), if r.one_in(20) { r.pick(&["gpu", "auto", "tpu"]).to_string() } else { "cpu".into() }]);
+            args.extend([
+                "--backend".into(),
+                if r.one_in(20) {
+                    r.pick(&["gpu", "auto", "tpu"]).to_string()
+                } else {
+                    "cpu".into()
+                },
+            ]);
             if r.one_in(6) {
-                args.extend(["--precision".into(), r.pick(&["f32", "f64", "f16"]).to_string()]);
+                args.extend([
+                    "--precision".into(),
+                    r.pick(&["f32", "f64", "f16"]).to_string(),
+                ]);
             }
             if r.below(3) > 0 {
                 let o = *r.pick(&[
-                    "out.h5", "out.h5", "out.csv", "nodir/x.h5", ".", "sub", "link.h5", "exists.h5",
-                    "", "out", "-",
+                    "out.h5",
+                    "out.h5",
+                    "out.csv",
+                    "nodir/x.h5",
+                    ".",
+                    "sub",
+                    "link.h5",
+                    "exists.h5",
+                    "",
+                    "out",
+                    "-",
                 ]);
                 args.extend(["-o".into(), o.into()]);
             }
@@ -1156,20 +1558,43 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
                 }
                 if r.one_in(3) {
                     files.push(("v.csv".into(), csv_text(r, &names)));
-                    args.extend(["--variants".into(), r.pick(&["v.csv", "v.csv", "missing.csv", "."]).to_string()]);
+                    args.extend([
+                        "--variants".into(),
+                        r.pick(&["v.csv", "v.csv", "missing.csv", "."]).to_string(),
+                    ]);
                 }
                 if r.one_in(3) {
                     // 100000 threads is the known hang of issue 15; seldom
-                    let th = if r.one_in(20) { "100000" } else { *r.pick(&["0", "1", "2", "-1", "x"]) };
+                    let th = if r.one_in(20) {
+                        "100000"
+                    } else {
+                        *r.pick(&["0", "1", "2", "-1", "x"])
+                    };
                     args.extend(["--threads".into(), th.into()]);
                 } else {
                     args.extend(["--threads".into(), "1".into()]);
                 }
                 if r.one_in(3) {
-                    args.extend(["--shard".into(), r.pick(&["0/0", "1/1", "5/10", "3/2", "a/b", "1/0", "2/3", "1/18446744073709551615"]).to_string()]);
+                    args.extend([
+                        "--shard".into(),
+                        r.pick(&[
+                            "0/0",
+                            "1/1",
+                            "5/10",
+                            "3/2",
+                            "a/b",
+                            "1/0",
+                            "2/3",
+                            "1/18446744073709551615",
+                        ])
+                        .to_string(),
+                    ]);
                 }
                 if r.one_in(4) {
-                    args.extend(["--frequency".into(), r.pick(&["s0", "s0.x", "nope", "", "s0.zz"]).to_string()]);
+                    args.extend([
+                        "--frequency".into(),
+                        r.pick(&["s0", "s0.x", "nope", "", "s0.zz"]).to_string(),
+                    ]);
                 }
             }
         }
@@ -1177,7 +1602,18 @@ pub fn gen_cli_case(r: &mut Rng, seeds: &[(String, String)]) -> Case {
     }
     if r.one_in(15) {
         // flags in the wrong place, unknown flags, repeated flags
-        let junk = r.pick(&["--bogus", "--json", "-o", "--set", "--", "-", "--threads=2", "--vary"]).to_string();
+        let junk = r
+            .pick(&[
+                "--bogus",
+                "--json",
+                "-o",
+                "--set",
+                "--",
+                "-",
+                "--threads=2",
+                "--vary",
+            ])
+            .to_string();
         let i = r.below(args.len() + 1);
         args.insert(i, junk);
     }
@@ -1220,19 +1656,36 @@ impl Outcome {
 /// when there is one (allocation failure, stack overflow, a panic while panicking),
 /// else the last line.
 fn abort_reason(stderr: &str) -> String {
-    for key in ["memory allocation of", "has overflowed its stack", "panicked at", "fatal runtime error"] {
+    for key in [
+        "memory allocation of",
+        "has overflowed its stack",
+        "panicked at",
+        "fatal runtime error",
+    ] {
         if let Some(l) = stderr.lines().find(|l| l.contains(key)) {
             // the thread name and id vary: keep what follows them
-            let l = l.split_once("' (").map_or(l, |(_, r)| r.split_once(") ").map_or(r, |(_, x)| x));
+            let l = l
+                .split_once("' (")
+                .map_or(l, |(_, r)| r.split_once(") ").map_or(r, |(_, x)| x));
             let mut s = normalize(l);
             if key == "panicked at" {
-                let msg = stderr.lines().skip_while(|x| !x.contains(key)).nth(1).unwrap_or("");
+                let msg = stderr
+                    .lines()
+                    .skip_while(|x| !x.contains(key))
+                    .nth(1)
+                    .unwrap_or("");
                 s = format!("{s} {}", normalize(msg));
             }
             return s;
         }
     }
-    normalize(stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or(""))
+    normalize(
+        stderr
+            .lines()
+            .rev()
+            .find(|l| !l.trim().is_empty())
+            .unwrap_or(""),
+    )
 }
 
 /// Digits replaced by `N`, so one cause with different sizes is one signature.
@@ -1278,7 +1731,10 @@ fn install_panic_hook() {
         } else {
             "(non-string payload)".into()
         };
-        let loc = info.location().map(|l| format!("{}:{}", l.file(), l.line())).unwrap_or_default();
+        let loc = info
+            .location()
+            .map(|l| format!("{}:{}", l.file(), l.line()))
+            .unwrap_or_default();
         let bt = std::backtrace::Backtrace::force_capture().to_string();
         let mut frame = String::new();
         let mut lines = bt.lines();
@@ -1289,7 +1745,10 @@ fn install_panic_hook() {
                     frame = f.to_string();
                     if let Some(at) = lines.next() {
                         if let Some(p) = at.trim().strip_prefix("at ") {
-                            let p = p.rsplit_once("/src/").map(|(_, x)| format!("src/{x}")).unwrap_or(p.to_string());
+                            let p = p
+                                .rsplit_once("/src/")
+                                .map(|(_, x)| format!("src/{x}"))
+                                .unwrap_or(p.to_string());
                             frame = format!("{frame} ({p})");
                         }
                     }
@@ -1306,17 +1765,28 @@ fn install_panic_hook() {
 
 /// Runs one in-process case; panics are caught and reported as findings.
 pub fn run_model_case(case: &Case) -> Outcome {
-    let Case::Model { text, set, analysis } = case else {
+    let Case::Model {
+        text,
+        set,
+        analysis,
+    } = case
+    else {
         return Outcome::ok("not_a_model_case");
     };
     if let Ok(mut g) = PANIC_INFO.lock() {
         *g = None;
     }
-    let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| model_case_body(text, set, *analysis)));
+    let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        model_case_body(text, set, *analysis)
+    }));
     match res {
         Ok(class) => Outcome::ok(class),
         Err(_) => {
-            let sig = PANIC_INFO.lock().ok().and_then(|g| g.clone()).unwrap_or_else(|| "panic (no info)".into());
+            let sig = PANIC_INFO
+                .lock()
+                .ok()
+                .and_then(|g| g.clone())
+                .unwrap_or_else(|| "panic (no info)".into());
             Outcome {
                 class: "panic".into(),
                 sig: format!("panic: {sig}"),
@@ -1390,7 +1860,9 @@ fn model_case_body(text: &str, set: &[(String, f64)], analysis: Analysis) -> &'s
 /// thread with the 8 MiB stack of a CLI main thread, so recursion depth findings are the
 /// same in the test harness (2 MiB test threads), the example and the binary.
 pub fn worker_main() {
-    let t = std::thread::Builder::new().stack_size(8 << 20).spawn(worker_loop);
+    let t = std::thread::Builder::new()
+        .stack_size(8 << 20)
+        .spawn(worker_loop);
     if let Ok(h) = t {
         let _ = h.join();
     }
@@ -1410,7 +1882,10 @@ fn worker_loop() {
     let mut out = std::io::stdout();
     for line in stdin.lock().lines() {
         let Ok(line) = line else { break };
-        let o = match serde_json::from_str::<Value>(&line).map_err(|e| e.to_string()).and_then(|v| Case::from_json(&v)) {
+        let o = match serde_json::from_str::<Value>(&line)
+            .map_err(|e| e.to_string())
+            .and_then(|v| Case::from_json(&v))
+        {
             Ok(c) => {
                 if let Ok(mut g) = CASE_CLOCK.lock() {
                     *g = (g.0 + 1, Some(Instant::now()));
@@ -1425,7 +1900,10 @@ fn worker_loop() {
             Err(e) => Outcome::ok(&format!("bad_case {e}")),
         };
         let reply = json!({"class": o.class, "sig": o.sig});
-        if writeln!(out, "{REPLY}{reply}").and_then(|_| out.flush()).is_err() {
+        if writeln!(out, "{REPLY}{reply}")
+            .and_then(|_| out.flush())
+            .is_err()
+        {
             break;
         }
     }
@@ -1439,7 +1917,9 @@ fn worker_loop() {
 fn limited(program: &Path, args: &[String]) -> Command {
     let mut c = Command::new("/bin/sh");
     c.arg("-c")
-        .arg(format!("ulimit -v {CHILD_MEM_KIB} 2>/dev/null; exec \"$0\" \"$@\""))
+        .arg(format!(
+            "ulimit -v {CHILD_MEM_KIB} 2>/dev/null; exec \"$0\" \"$@\""
+        ))
         .arg(program)
         .args(args);
     c
@@ -1459,10 +1939,23 @@ impl Worker {
         for (k, v) in env {
             c.env(k, v);
         }
-        let mut child = c.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn()?;
-        let stdin = child.stdin.take().ok_or_else(|| std::io::Error::other("no stdin"))?;
-        let stdout = child.stdout.take().ok_or_else(|| std::io::Error::other("no stdout"))?;
-        let mut stderr = child.stderr.take().ok_or_else(|| std::io::Error::other("no stderr"))?;
+        let mut child = c
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()?;
+        let stdin = child
+            .stdin
+            .take()
+            .ok_or_else(|| std::io::Error::other("no stdin"))?;
+        let stdout = child
+            .stdout
+            .take()
+            .ok_or_else(|| std::io::Error::other("no stdout"))?;
+        let mut stderr = child
+            .stderr
+            .take()
+            .ok_or_else(|| std::io::Error::other("no stderr"))?;
         let (tx, rx) = mpsc::channel();
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines() {
@@ -1487,7 +1980,11 @@ impl Worker {
                     g.push_str(&String::from_utf8_lossy(&buf[..n]));
                     let len = g.len();
                     if len > 8192 {
-                        let cut = g.char_indices().map(|(i, _)| i).find(|&i| i >= len - 4096).unwrap_or(0);
+                        let cut = g
+                            .char_indices()
+                            .map(|(i, _)| i)
+                            .find(|&i| i >= len - 4096)
+                            .unwrap_or(0);
                         g.drain(..cut);
                     }
                 }
@@ -1504,8 +2001,15 @@ impl Worker {
     /// Sends one case; Err(outcome) when the worker died or hung (it is then dead).
     pub fn run(&mut self, case: &Case, limit: Duration) -> Result<Outcome, Outcome> {
         let line = format!("{}\n", case.to_json());
-        let sent = self.stdin.write_all(line.as_bytes()).and_then(|_| self.stdin.flush());
-        let reply = if sent.is_ok() { self.replies.recv_timeout(limit) } else { Err(RecvTimeoutError::Disconnected) };
+        let sent = self
+            .stdin
+            .write_all(line.as_bytes())
+            .and_then(|_| self.stdin.flush());
+        let reply = if sent.is_ok() {
+            self.replies.recv_timeout(limit)
+        } else {
+            Err(RecvTimeoutError::Disconnected)
+        };
         match reply {
             Ok(r) => {
                 let v: Value = serde_json::from_str(&r).unwrap_or(Value::Null);
@@ -1532,7 +2036,11 @@ impl Worker {
                 let status = self.child.wait();
                 // the stderr reader may still be draining the last lines
                 std::thread::sleep(Duration::from_millis(50));
-                let tail = self.stderr_tail.lock().map(|g| g.clone()).unwrap_or_default();
+                let tail = self
+                    .stderr_tail
+                    .lock()
+                    .map(|g| g.clone())
+                    .unwrap_or_default();
                 let how = match status {
                     Ok(s) => {
                         use std::os::unix::process::ExitStatusExt;
@@ -1582,7 +2090,13 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
         return Outcome::ok("setup_failed");
     };
     let t0 = Instant::now();
-    let mut child = match limited(bin, args).current_dir(dir).stdin(Stdio::null()).stdout(so).stderr(se).spawn() {
+    let mut child = match limited(bin, args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(so)
+        .stderr(se)
+        .spawn()
+    {
         Ok(c) => c,
         Err(e) => return Outcome::ok(&format!("spawn_failed {e}")),
     };
@@ -1594,16 +2108,27 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
                 let _ = child.wait();
                 return Outcome {
                     class: "hang".into(),
-                    sig: format!("hang: cli `{}` over {} s", args.first().map(String::as_str).unwrap_or(""), limit.as_secs()),
+                    sig: format!(
+                        "hang: cli `{}` over {} s",
+                        args.first().map(String::as_str).unwrap_or(""),
+                        limit.as_secs()
+                    ),
                     detail: String::new(),
                 };
             }
-            Ok(None) => std::thread::sleep(Duration::from_millis(if t0.elapsed() < Duration::from_millis(50) { 1 } else { 10 })),
+            Ok(None) => std::thread::sleep(Duration::from_millis(
+                if t0.elapsed() < Duration::from_millis(50) {
+                    1
+                } else {
+                    10
+                },
+            )),
             Err(e) => return Outcome::ok(&format!("wait_failed {e}")),
         }
     };
     let out = std::fs::read(dir.join(".stdout")).unwrap_or_default();
-    let err = String::from_utf8_lossy(&std::fs::read(dir.join(".stderr")).unwrap_or_default()).into_owned();
+    let err = String::from_utf8_lossy(&std::fs::read(dir.join(".stderr")).unwrap_or_default())
+        .into_owned();
     let verb = args.first().cloned().unwrap_or_default();
     use std::os::unix::process::ExitStatusExt;
     if let Some(sig) = status.signal() {
@@ -1619,14 +2144,25 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
         70 => {
             return Outcome {
                 class: "internal_error".into(),
-                sig: format!("exit 70 (cli {verb}): {}", normalize(err.lines().find(|l| !l.trim().is_empty()).unwrap_or(""))),
+                sig: format!(
+                    "exit 70 (cli {verb}): {}",
+                    normalize(err.lines().find(|l| !l.trim().is_empty()).unwrap_or(""))
+                ),
                 detail: err,
             }
         }
         101 => {
             // Rust's panic exit code: name the panic site
-            let at = err.lines().find(|l| l.contains("panicked at")).unwrap_or("").to_string();
-            let msg = err.lines().skip_while(|l| !l.contains("panicked at")).nth(1).unwrap_or("");
+            let at = err
+                .lines()
+                .find(|l| l.contains("panicked at"))
+                .unwrap_or("")
+                .to_string();
+            let msg = err
+                .lines()
+                .skip_while(|l| !l.contains("panicked at"))
+                .nth(1)
+                .unwrap_or("");
             return Outcome {
                 class: "panic".into(),
                 sig: format!("panic (cli {verb}): {} | {at}", normalize(msg)),
@@ -1642,7 +2178,9 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
         }
     }
     let json = args.iter().any(|a| a == "--json");
-    let help = args.iter().any(|a| matches!(a.as_str(), "--help" | "-h" | "--version" | "-V" | "help"));
+    let help = args
+        .iter()
+        .any(|a| matches!(a.as_str(), "--help" | "-h" | "--version" | "-V" | "help"));
     if code == 0 && json && !help && serde_json::from_slice::<Value>(&out).is_err() {
         return Outcome {
             class: "bad_json".into(),
@@ -1701,7 +2239,11 @@ impl Report {
         if self.findings.is_empty() {
             s += "findings: none\n";
         } else {
-            s += &format!("findings: {} in {} distinct causes\n", self.finding_count(), self.findings.len());
+            s += &format!(
+                "findings: {} in {} distinct causes\n",
+                self.finding_count(),
+                self.findings.len()
+            );
             for (sig, (n, p)) in &self.findings {
                 s += &format!("  {n:>7} × {sig}\n          input: {}\n", p.display());
             }
@@ -1726,12 +2268,22 @@ fn record(rep: &mut Report, cfg: &Config, case: &Case, o: &Outcome) {
         return;
     }
     let entry = rep.findings.entry(o.sig.clone()).or_insert_with(|| {
-        let p = cfg.out.join(format!("{}-{:016x}.json", o.class, hash_str(&o.sig)));
+        let p = cfg
+            .out
+            .join(format!("{}-{:016x}.json", o.class, hash_str(&o.sig)));
         let _ = std::fs::create_dir_all(&cfg.out);
         let mut v = case.to_json();
         v["finding"] = json!(o.sig);
         if !o.detail.is_empty() {
-            v["stderr_tail"] = json!(o.detail.chars().rev().take(3000).collect::<String>().chars().rev().collect::<String>());
+            v["stderr_tail"] = json!(o
+                .detail
+                .chars()
+                .rev()
+                .take(3000)
+                .collect::<String>()
+                .chars()
+                .rev()
+                .collect::<String>());
         }
         let _ = std::fs::write(&p, serde_json::to_string_pretty(&v).unwrap_or_default());
         if cfg.progress {
@@ -1755,12 +2307,14 @@ pub fn campaign(cfg: &Config, replay: &[Case]) -> std::io::Result<Report> {
         let case = if let Some(c) = replay.get(i as usize) {
             c.clone()
         } else {
-            if i >= cfg.cases + replay.len() as u64 || cfg.duration.is_some_and(|d| t0.elapsed() >= d) {
+            if i >= cfg.cases + replay.len() as u64
+                || cfg.duration.is_some_and(|d| t0.elapsed() >= d)
+            {
                 break;
             }
             // every case from its own seed: case i of seed S can be regenerated alone
             let mut r = Rng::new(cfg.seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ i);
-            if cfg.bin.is_some() && cfg.cli_every > 0 && i % cfg.cli_every == 0 {
+            if cfg.bin.is_some() && cfg.cli_every > 0 && i.is_multiple_of(cfg.cli_every) {
                 gen_cli_case(&mut r, &seeds)
             } else {
                 gen_model_case(&mut r, &seeds)
@@ -1791,7 +2345,13 @@ pub fn campaign(cfg: &Config, replay: &[Case]) -> std::io::Result<Report> {
         if cfg.progress && Instant::now() >= next_report {
             next_report = Instant::now() + Duration::from_secs(10);
             let s = t0.elapsed().as_secs_f64();
-            eprintln!("{} cases, {:.0}/s, {} findings ({} distinct)", rep.cases, rep.cases as f64 / s, rep.finding_count(), rep.findings.len());
+            eprintln!(
+                "{} cases, {:.0}/s, {} findings ({} distinct)",
+                rep.cases,
+                rep.cases as f64 / s,
+                rep.finding_count(),
+                rep.findings.len()
+            );
         }
     }
     rep.worker_restarts = rep.worker_restarts.saturating_sub(1);
@@ -1803,13 +2363,21 @@ pub fn campaign(cfg: &Config, replay: &[Case]) -> std::io::Result<Report> {
 /// Every `*.json` case in `dir`, sorted by name.
 pub fn load_cases(dir: &Path) -> Result<Vec<(PathBuf, Case)>, String> {
     let mut out = Vec::new();
-    let Ok(rd) = std::fs::read_dir(dir) else { return Ok(out) };
-    let mut paths: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "json")).collect();
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return Ok(out);
+    };
+    let mut paths: Vec<PathBuf> = rd
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
     paths.sort();
     for p in paths {
         let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
         let v: Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
-        out.push((p.clone(), Case::from_json(&v).map_err(|e| format!("{}: {e}", p.display()))?));
+        out.push((
+            p.clone(),
+            Case::from_json(&v).map_err(|e| format!("{}: {e}", p.display()))?,
+        ));
     }
     Ok(out)
 }
