@@ -7,7 +7,7 @@
 //!
 //! Options: `--cases N` (default 1 000 000), `--seed S` (default 1), `--out DIR` (finding
 //! inputs, one per distinct cause; default `fuzz-out`), `--seconds T` (stop earlier),
-//! `--cli-every K` (one case in K runs the binary; default 50; 0 = none), `--bin PATH`
+//! `--cli-every K` (one case in K runs the binary, a process each; default 100; 0 = none), `--bin PATH`
 //! (default: `latdyn` beside the examples directory), `--case FILE` (run one saved input
 //! and print its outcome), `--no-replay` (skip `tests/fuzz_regressions/`).
 //! Prints the rate and the count of every outcome class; exits 1 when anything was found.
@@ -32,7 +32,7 @@ fn main() -> ExitCode {
     let mut seed: u64 = 1;
     let mut out = PathBuf::from("fuzz-out");
     let mut seconds: Option<f64> = None;
-    let mut cli_every: u64 = 50;
+    let mut cli_every: u64 = 100;
     let mut bin: Option<PathBuf> = exe
         .parent()
         .and_then(|p| p.parent())
