@@ -107,7 +107,7 @@ fn fuzz_regressions_and_time_boxed_run_find_no_panic_abort_or_hang() {
     let cfg = config(seed, Some(Duration::from_secs_f64(secs)), u64::MAX / 2);
     let rep = gen::campaign(&cfg, &[]).expect("fuzz worker starts");
     eprintln!("{}", rep.summary());
-    assert!(rep.cases > 0, "the fuzzer ran no case");
+    assert!(secs <= 0.0 || rep.cases > 0, "the fuzzer ran no case");
     assert!(
         failed.is_empty() && rep.findings.is_empty(),
         "fuzzing found {} failing regression inputs and {} new findings (inputs under {}); see the log above",
