@@ -1713,6 +1713,28 @@ fn normalize(s: &str) -> String {
 
 static PANIC_INFO: Mutex<Option<String>> = Mutex::new(None);
 
+/// The innermost `latdyn::` function of a printed backtrace, with its source line.
+fn latdyn_frame(bt: &str) -> String {
+    let mut lines = bt.lines();
+    while let Some(l) = lines.next() {
+        if let Some((_, f)) = l.trim().split_once(": ") {
+            if f.starts_with("latdyn::") {
+                let at = lines.next().unwrap_or("").trim();
+                return match at.strip_prefix("at ") {
+                    Some(p) => {
+                        let p = p
+                            .rsplit_once("/src/")
+                            .map_or(p.to_string(), |(_, x)| format!("src/{x}"));
+                        format!("{f} ({p})")
+                    }
+                    None => f.to_string(),
+                };
+            }
+        }
+    }
+    String::new()
+}
+
 /// A dynamics case still running after this is stopped at its next output sample and
 /// counted as `stopped_slow`: a valid model that needs millions of steps (say EI = 1e20,
 /// where Newton only converges at dt/10⁴) is a slow run, not a crash, and must not eat
@@ -1738,26 +1760,7 @@ fn install_panic_hook() {
             .map(|l| format!("{}:{}", l.file(), l.line()))
             .unwrap_or_default();
         let bt = std::backtrace::Backtrace::force_capture().to_string();
-        let mut frame = String::new();
-        let mut lines = bt.lines();
-        while let Some(l) = lines.next() {
-            let l = l.trim();
-            if let Some((_, f)) = l.split_once(": ") {
-                if f.starts_with("latdyn::") {
-                    frame = f.to_string();
-                    if let Some(at) = lines.next() {
-                        if let Some(p) = at.trim().strip_prefix("at ") {
-                            let p = p
-                                .rsplit_once("/src/")
-                                .map(|(_, x)| format!("src/{x}"))
-                                .unwrap_or(p.to_string());
-                            frame = format!("{frame} ({p})");
-                        }
-                    }
-                    break;
-                }
-            }
-        }
+        let frame = latdyn_frame(&bt);
         let s = format!("{} | at {loc} | in {frame}", normalize(&msg));
         if let Ok(mut g) = PANIC_INFO.lock() {
             *g = Some(s);
@@ -2103,6 +2106,8 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
     let t0 = Instant::now();
     let mut child = match limited(bin, args)
         .current_dir(dir)
+        // a panic prints its backtrace: the signature names the latdyn function
+        .env("RUST_BACKTRACE", "1")
         .stdin(Stdio::null())
         .stdout(so)
         .stderr(se)
@@ -2164,9 +2169,10 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
         }
         101 => {
             // Rust's panic exit code: name the panic site
+            // `thread 'main' (PID) panicked at FILE:LINE:COL:` without the thread id
             let at = err
                 .lines()
-                .find(|l| l.contains("panicked at"))
+                .find_map(|l| l.split_once("panicked at ").map(|x| x.1))
                 .unwrap_or("")
                 .to_string();
             let msg = err
@@ -2176,7 +2182,11 @@ pub fn run_cli_case(bin: &Path, case: &Case, dir: &Path, limit: Duration) -> Out
                 .unwrap_or("");
             return Outcome {
                 class: "panic".into(),
-                sig: format!("panic (cli {verb}): {} | {at}", normalize(msg)),
+                sig: format!(
+                    "panic (cli {verb}): {} | at {at} | in {}",
+                    normalize(msg),
+                    latdyn_frame(&err)
+                ),
                 detail: err,
             };
         }
