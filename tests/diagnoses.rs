@@ -306,3 +306,27 @@ fn nan_load_factor_mid_run_names_the_load_and_time() {
     assert!(err.contains("t = 0.50"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Found by the fuzzer: with EA = 1e20 the nominal step of 1 s never converges, and the
+/// controller alternated between halving and regrowing for minutes (169 000 rejected of
+/// 338 000 attempts over 3 s). The run now stops as stalled, says why, and exits 3.
+#[test]
+fn a_step_that_keeps_collapsing_stops_as_stalled_with_exit_3() {
+    let started = std::time::Instant::now();
+    let out = latdyn(&[
+        "run",
+        "models/spinup_beam.toml",
+        "--set",
+        "EA=1e20",
+        "--set",
+        "dt=1",
+        "--set",
+        "t_end=3",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    eprintln!("{err}");
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(err.contains("stalled") && err.contains("rejected"), "{err}");
+    // a stall is found within a few thousand attempts, not after minutes
+    assert!(started.elapsed().as_secs() < 60);
+}

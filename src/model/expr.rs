@@ -776,6 +776,10 @@ enum Kind {
     /// q, dq/dt, d²q/dt² (boxed: exmex expressions keep large inline buffers)
     Symbolic(Box<[Expr<f64>; 3]>),
     Jet(Box<Expr<Jet>>),
+    /// a long expression with its variables in exmex's order: the parameters' values as
+    /// constant jets and the slot of `t`; evaluated flat, never substituted or
+    /// differentiated on exmex's recursive tree (see [`MAX_SYMBOLIC_OPERATIONS`])
+    JetVars(Box<Expr<Jet>>, Vec<Jet>, usize),
 }
 
 /// Replaces every name except `t` by its value, so the stored expressions have at most the
@@ -803,6 +807,33 @@ where
         .map_err(|e| format!("cannot evaluate `{text}`: {}", e.msg()))
 }
 
+/// Drives with more operations than this get their derivatives from jets, not from exmex's
+/// symbolic `partial`: that recursion grows faster than linearly in stack and time with the
+/// length of a chain (measured in the test build: a sum of 100 `t` overflowed the 8 MiB
+/// main stack, a product of 48 took 2 s, a power tower of 48 overflowed; towers of 13
+/// took under 0.1 s). Jets are exact too and linear in the expression's size; the shipped
+/// drives and the usual deployment profiles stay within this bound.
+pub const MAX_SYMBOLIC_OPERATIONS: usize = 12;
+
+/// Operators and function calls in an expression (a comma separates a two-argument call's
+/// operands, which the rewrite turns into an operator): the nodes the symbolic derivative
+/// recurses through, counted from the text alone.
+fn operation_count(source: &str) -> usize {
+    let mut count = 0;
+    let mut prev: Option<char> = None;
+    for c in source.chars() {
+        match c {
+            '+' | '-' | '*' | '/' | '^' | ',' => count += 1,
+            '(' if prev.is_some_and(|p| p.is_alphanumeric() || p == '_') => count += 1,
+            _ => {}
+        }
+        if !c.is_whitespace() {
+            prev = Some(c);
+        }
+    }
+    count
+}
+
 impl TimeFunction {
     /// A driver from an expression in `t` and the parameters.
     pub fn new(source: &str, params: &[(String, f64)]) -> Result<TimeFunction, String> {
@@ -811,6 +842,9 @@ impl TimeFunction {
 
     /// [`TimeFunction::new`] over any [`Scope`].
     pub fn new_in(source: &str, params: &dyn Scope) -> Result<TimeFunction, String> {
+        if operation_count(source) > MAX_SYMBOLIC_OPERATIONS {
+            return TimeFunction::long(source, params);
+        }
         let q = substitute(parse::<f64>(source)?, source, params)?;
         let kind = if q.var_names().is_empty() {
             let v = q
@@ -827,6 +861,36 @@ impl TimeFunction {
                 Err(_) => Kind::Jet(Box::new(substitute(parse::<Jet>(source)?, source, params)?)),
             }
         };
+        TimeFunction::checked(source, kind)
+    }
+
+    /// A long expression: jets evaluated flat over a variable vector (exmex's flat
+    /// evaluation does not recurse, its substitution and differentiation do).
+    fn long(source: &str, params: &dyn Scope) -> Result<TimeFunction, String> {
+        let e = parse::<Jet>(source)?;
+        let mut slot = None;
+        let mut vals = Vec::new();
+        for (i, n) in e.var_names().iter().enumerate() {
+            if n == TIME {
+                slot = Some(i);
+                vals.push(Jet::variable(0.0));
+            } else {
+                let v = lookup(n, params).ok_or_else(|| undefined(n, source))?;
+                vals.push(Jet::constant(v));
+            }
+        }
+        let kind = match slot {
+            Some(k) => Kind::JetVars(Box::new(e), vals, k),
+            None => Kind::Constant(
+                e.eval_relaxed(&vals)
+                    .map_err(|err| format!("cannot evaluate `{source}`: {}", err.msg()))?
+                    .v,
+            ),
+        };
+        TimeFunction::checked(source, kind)
+    }
+
+    fn checked(source: &str, kind: Kind) -> Result<TimeFunction, String> {
         let f = TimeFunction {
             source: source.to_string(),
             kind,
@@ -850,7 +914,7 @@ impl TimeFunction {
 
     /// Whether the derivatives come from exmex's symbolic differentiation (else from jets).
     pub fn is_symbolic(&self) -> bool {
-        !matches!(self.kind, Kind::Jet(_))
+        !matches!(self.kind, Kind::Jet(_) | Kind::JetVars(..))
     }
 
     /// value, rate and acceleration at time `t` (NaN if the expression cannot be evaluated)
@@ -864,6 +928,14 @@ impl TimeFunction {
                 Ok(j) => [j.v, j.d1, j.d2],
                 Err(_) => [f64::NAN; 3],
             },
+            Kind::JetVars(e, vals, k) => {
+                let mut x = vals.clone();
+                x[*k] = Jet::variable(t);
+                match e.eval_relaxed(&x) {
+                    Ok(j) => [j.v, j.d1, j.d2],
+                    Err(_) => [f64::NAN; 3],
+                }
+            }
         }
     }
 
@@ -1088,6 +1160,39 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn long_operator_chains_take_jets_without_exhausting_the_stack() {
+        // found by the fuzzer: a 100-term sum overflowed the stack in exmex's `partial`
+        // chains as long as the 4096-byte limit allows, on this test's 2 MiB thread stack
+        // (a worker thread's size); a symbolic route overflowed it from about 32 terms
+        for op in ["+", "-", "*", "/", "^"] {
+            let mut terms = vec!["(t+2)"];
+            terms.extend(vec![if op == "^" { "1" } else { "1.5" }; 900]);
+            let src = terms.join(op);
+            assert!(src.len() <= MAX_EXPR_LEN);
+            let f = TimeFunction::new(&src, &[]).unwrap();
+            assert!(!f.is_symbolic(), "{op}");
+            let nested = format!("{}t{}+{src}", "sin(".repeat(60), ")".repeat(60));
+            assert!(TimeFunction::new(&nested, &[]).is_ok(), "{op}");
+        }
+        let sum = vec!["t"; 100].join("+");
+        let [q, v, a] = TimeFunction::new(&sum, &[]).unwrap().eval(0.5);
+        assert_eq!([q, v, a], [50.0, 100.0, 0.0]);
+        // parameters of a long expression are looked up, not substituted
+        let ps = p(&[("w", 2.0), ("a", 3.0)]);
+        let long = format!("a*sin(w*t) + {}", vec!["0*t"; 20].join("+"));
+        let f = TimeFunction::new(&long, &ps).unwrap();
+        let [q, v, a] = f.eval(0.25);
+        assert!((q - 3.0 * 0.5f64.sin()).abs() < 1e-15);
+        assert!((v - 6.0 * 0.5f64.cos()).abs() < 1e-15);
+        assert!((a + 12.0 * 0.5f64.sin()).abs() < 1e-14);
+        let e = TimeFunction::new(&format!("{long} + b"), &ps).unwrap_err();
+        assert!(e.contains('b'), "{e}");
+        let short = TimeFunction::new("t*t*t", &[]).unwrap();
+        assert!(short.is_symbolic());
+        assert_eq!(operation_count("atan2(t, 1) + sin (t)"), 4);
     }
 
     #[test]
