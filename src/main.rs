@@ -451,6 +451,67 @@ fn plot(args: &PlotArgs) -> anyhow::Result<()> {
     };
     lp::ImageFormat::from_path(&args.output)?;
     let c = lp::Campaign::open(&args.input)?;
+    // the chart follows the output policy of run and sweep (no symlinks or special files,
+    // locked, atomic replace): it is drawn to a sibling and moved into place at the end
+    let target = claim_output(&args.output)?;
+    let staging = Staging(staging_path(&args.output));
+    let summary = plot_to(args, &opts, &c, &staging.0)?;
+    let bytes = std::fs::read(&staging.0)
+        .map_err(|e| anyhow!("{}: cannot read the drawn chart: {e}", staging.0.display()))?;
+    target
+        .replace_with(&bytes)
+        .map_err(|e| fail(EXIT_OUTPUT, e.to_string()))?;
+    for n in &summary.notes {
+        eprintln!("note: {n}");
+    }
+    if args.json && args.campbell.is_none() {
+        let v = serde_json::json!({
+            "output": args.output.display().to_string(),
+            "lines": summary.lines,
+        });
+        emit(&format!("{v}\n"))?;
+    }
+    eprintln!(
+        "plot: wrote {} ({} lines)",
+        args.output.display(),
+        summary.lines.len()
+    );
+    Ok(())
+}
+
+/// A chart's drawing file beside its destination, removed however `plot` ends.
+struct Staging(PathBuf);
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// `.<name>.<pid>.draw.<ext>` in the destination's directory (the extension picks the
+/// format; the same directory makes the final move a rename on one file system).
+fn staging_path(out: &std::path::Path) -> PathBuf {
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = out
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let p = out.with_file_name(format!(".{name}.{}.draw.{ext}", std::process::id()));
+    let _ = std::fs::remove_file(&p);
+    p
+}
+
+/// Draws the chart `args` asks for into `path`.
+fn plot_to(
+    args: &PlotArgs,
+    opts: &latdyn::plot::PlotOptions,
+    c: &latdyn::plot::Campaign,
+    path: &std::path::Path,
+) -> anyhow::Result<latdyn::plot::PlotSummary> {
+    use latdyn::plot as lp;
     let summary = if let Some(param) = &args.campbell {
         let derived = args
             .derived
@@ -467,7 +528,7 @@ fn plot(args: &PlotArgs) -> anyhow::Result<()> {
                 None => Vec::new(),
             },
         };
-        let r = lp::plot_campbell(&c, &spec, &opts, &args.output)?;
+        let r = lp::plot_campbell(c, &spec, opts, path)?;
         for (n, om) in &r.crossings {
             eprintln!("crossing: {n}Ω at {param} = {om:.6} rad/s");
         }
@@ -495,26 +556,11 @@ fn plot(args: &PlotArgs) -> anyhow::Result<()> {
         }
         r.summary
     } else if let (Some(x), Some(y)) = (&args.x, &args.y) {
-        lp::plot_phase(&c, x, y, &opts, &args.output)?
+        lp::plot_phase(c, x, y, opts, path)?
     } else {
-        lp::plot_sensors(&c, &args.sensor, &opts, &args.output)?
+        lp::plot_sensors(c, &args.sensor, opts, path)?
     };
-    for n in &summary.notes {
-        eprintln!("note: {n}");
-    }
-    if args.json && args.campbell.is_none() {
-        let v = serde_json::json!({
-            "output": args.output.display().to_string(),
-            "lines": summary.lines,
-        });
-        emit(&format!("{v}\n"))?;
-    }
-    eprintln!(
-        "plot: wrote {} ({} lines)",
-        args.output.display(),
-        summary.lines.len()
-    );
-    Ok(())
+    Ok(summary)
 }
 
 /// Write text to stdout; a closed pipe is an error, not a panic.

@@ -572,3 +572,44 @@ fn crossings_edge_cases() {
     assert!(campbell_crossings(&[1.0], &[1.0], 0).is_empty());
     assert_eq!(campbell_crossings(&[1.0], &[1.0], 1), [(1, 1.0)]);
 }
+
+/// Charts follow the output policy of `run` and `sweep`: a symlink or a directory at the
+/// path is refused (the link's target untouched), a missing directory fails, and a
+/// successful chart leaves no drawing file or lock beside it.
+#[test]
+fn chart_outputs_follow_the_output_safety_policy() {
+    let h5 = small("chart_output_policy");
+    let d = dir().join("policy");
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let victim = d.join("victim.txt");
+    std::fs::write(&victim, "keep me").unwrap();
+    let link = d.join("link.svg");
+    std::os::unix::fs::symlink(&victim, &link).unwrap();
+    let o = latdyn(&["plot", s(&h5), "--sensor", "tip.z", "-o", s(&link)]);
+    fails(&o, &["symbolic link"]);
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me");
+    let sub = d.join("adir.png");
+    std::fs::create_dir_all(&sub).unwrap();
+    let o = latdyn(&["plot", s(&h5), "--sensor", "tip.z", "-o", s(&sub)]);
+    fails(&o, &["directory"]);
+    let missing = d.join("nodir").join("x.svg");
+    let o = latdyn(&["plot", s(&h5), "--sensor", "tip.z", "-o", s(&missing)]);
+    fails(&o, &["nodir"]);
+    let good = d.join("good.svg");
+    ok(&latdyn(&[
+        "plot",
+        s(&h5),
+        "--sensor",
+        "tip.z",
+        "-o",
+        s(&good),
+    ]));
+    check_svg(&good, &[]);
+    let mut names: Vec<String> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["adir.png", "good.svg", "link.svg", "victim.txt"]);
+}
