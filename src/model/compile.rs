@@ -301,6 +301,12 @@ impl Compiler<'_> {
         if big == 0.0 {
             return Err(self.err(v.span(), field, "has zero length"));
         }
+        let n = norm(x);
+        if n.is_finite() && n > 1e-150 {
+            // the plain normalisation where it cannot overflow or lose digits, so axes
+            // stay bit-identical to earlier releases
+            return Ok(scale(x, 1.0 / n));
+        }
         let y = scale(x, 1.0 / big);
         Ok(scale(y, 1.0 / norm(y)))
     }
