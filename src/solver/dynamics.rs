@@ -437,8 +437,22 @@ impl<'m> Integrator<'m> {
 
     /// Advance to time `t_target` exactly, cutting steps where Newton fails.
     pub fn advance_to(&mut self, t_target: f64) -> Result<(), DynamicsError> {
+        self.advance_until(t_target, None)
+    }
+
+    /// [`Self::advance_to`], stopping with [`DynamicsError::Interrupted`] before any step
+    /// once `stop` is set: a stiff model may need thousands of steps within one output
+    /// interval, and a signal or a time box must not wait for the interval's end.
+    pub fn advance_until(
+        &mut self,
+        t_target: f64,
+        stop: Option<&std::sync::atomic::AtomicBool>,
+    ) -> Result<(), DynamicsError> {
         let dt_nominal = self.model.solver.dt;
         while self.s.t < t_target - 1e-12 * t_target.abs().max(1.0) {
+            if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) {
+                return Err(DynamicsError::Interrupted { t: self.s.t });
+            }
             let h = self.h.min(t_target - self.s.t);
             if let Some(what) = joint::non_finite_input(self.model, self.s.t + h) {
                 return Err(DynamicsError::NonFiniteInput {
@@ -592,7 +606,7 @@ pub fn run_with(
             break;
         }
         if i > 0 {
-            if let Err(e) = integ.advance_to(t) {
+            if let Err(e) = integ.advance_until(t, stop) {
                 failure = Some(e);
                 break;
             }
