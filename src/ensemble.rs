@@ -8,10 +8,10 @@
 //! runs exactly the code path of a single `run`, so its numbers are bit-identical to
 //! running it alone. Each finished variant's samples go into the campaign file, which is
 //! flushed (rewritten atomically) at most every 2 s and at the end; on Ctrl-C the
-//! variants in flight stop at their next output sample, their samples so far are kept,
+//! variants in flight stop before their next time step, their samples so far are kept,
 //! and the file is finished as "interrupted". If the file cannot be written mid-campaign
 //! (disk full, directory removed), no new variant starts, the variants in flight stop at
-//! their next output sample, the last flushed file stays as it was, and the outcomes are
+//! their next time step, the last flushed file stays as it was, and the outcomes are
 //! still returned ([`run_to`]) so the caller can report them.
 
 use std::path::{Path, PathBuf};
@@ -546,7 +546,7 @@ pub fn run_on(
 /// [`run_on`] writing to `target` (claimed by the caller, before its preparations), for
 /// callers that report the outcomes even when the output failed mid-run: an error
 /// writing the file stops the campaign (no new variant starts, those in flight stop at
-/// their next output sample) and is returned beside the outcomes. Errors before any
+/// their next time step) and is returned beside the outcomes. Errors before any
 /// variant ran (the file cannot be created) are returned as `Err`.
 pub fn run_to(
     c: &Campaign,

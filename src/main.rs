@@ -361,7 +361,7 @@ fn dispatch(cli: &Cli) -> anyhow::Result<()> {
 }
 
 /// Set on SIGINT, SIGTERM or SIGHUP (what a terminal, a scheduler or a closed session
-/// sends): runs and sweeps stop at their next output sample and finish their file as
+/// sends): runs and sweeps stop before their next time step and finish their file as
 /// interrupted. A handler can be installed once per process; failing to install one
 /// (not possible on this platform) leaves the default behaviour.
 fn stop_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {

@@ -1735,7 +1735,7 @@ fn latdyn_frame(bt: &str) -> String {
     String::new()
 }
 
-/// A dynamics case still running after this is stopped at its next output sample and
+/// A dynamics case still running after this is stopped before its next time step and
 /// counted as `stopped_slow`: a valid model that needs millions of steps (say EI = 1e20,
 /// where Newton only converges at dt/10⁴) is a slow run, not a crash, and must not eat
 /// the hang limit. Statics has no stop hook: a statics case over the hang limit is a hang.
