@@ -5,15 +5,6 @@
 mod common;
 use common::*;
 use latdyn::solver::{solve_statics, statics::StaticsError};
-use std::process::{Command, Output};
-
-fn latdyn(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_latdyn"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run latdyn")
-}
 
 const PROPS: &str = r#"EA = 1.0e7
 EIy = 100.0

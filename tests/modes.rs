@@ -85,16 +85,6 @@ fn free_free_frequencies_converge_at_fourth_order_to_beta_l_closed_form() {
 // Sections without rotary inertia, preloads, shipped models (issue 15)
 // ---------------------------------------------------------------------------------------
 
-use std::process::Command;
-
-fn latdyn(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_latdyn"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run latdyn")
-}
-
 /// `latdyn modes ARGS --json`, parsed; panics with stderr on failure.
 fn modes_json(args: &[&str]) -> serde_json::Value {
     let mut a = vec!["modes"];

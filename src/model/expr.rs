@@ -929,9 +929,20 @@ impl TimeFunction {
                 Err(_) => [f64::NAN; 3],
             },
             Kind::JetVars(e, vals, k) => {
-                let mut x = vals.clone();
+                // drives are evaluated in every Newton iteration: the variable vector
+                // lives on the stack unless the expression names many parameters
+                const ON_STACK: usize = 16;
+                let mut buf = [Jet::default(); ON_STACK];
+                let mut heap = Vec::new();
+                let x: &mut [Jet] = if vals.len() <= ON_STACK {
+                    buf[..vals.len()].copy_from_slice(vals);
+                    &mut buf[..vals.len()]
+                } else {
+                    heap.extend_from_slice(vals);
+                    &mut heap
+                };
                 x[*k] = Jet::variable(t);
-                match e.eval_relaxed(&x) {
+                match e.eval_relaxed(x) {
                     Ok(j) => [j.v, j.d1, j.d2],
                     Err(_) => [f64::NAN; 3],
                 }

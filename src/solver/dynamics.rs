@@ -454,14 +454,19 @@ impl<'m> Integrator<'m> {
                 return Err(DynamicsError::Interrupted { t: self.s.t });
             }
             let h = self.h.min(t_target - self.s.t);
-            if let Some(what) = joint::non_finite_input(self.model, self.s.t + h) {
-                return Err(DynamicsError::NonFiniteInput {
-                    what,
-                    t: self.s.t + h,
-                });
-            }
             self.prev_q.clone_from(&self.s.q);
-            match self.try_step(h)? {
+            let step = self.try_step(h);
+            // a drive or load that turned non-finite fails the step (NaN residual or
+            // factorization); it is looked for only then, not evaluated again every step
+            if !matches!(step, Ok(Some(_))) {
+                if let Some(what) = joint::non_finite_input(self.model, self.s.t + h) {
+                    return Err(DynamicsError::NonFiniteInput {
+                        what,
+                        t: self.s.t + h,
+                    });
+                }
+            }
+            match step? {
                 Some(iters) => {
                     self.stats.steps += 1;
                     self.stats.newton_iterations += iters;

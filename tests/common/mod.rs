@@ -82,3 +82,12 @@ pub fn sensor<'a>(model: &Model, vals: &'a [Vec<f64>], name: &str) -> &'a [f64] 
 pub fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
 }
+
+/// The `latdyn` binary run from the repository root with `args`.
+pub fn latdyn(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run latdyn")
+}
