@@ -92,6 +92,7 @@ fn campaign(
         threads,
         output,
         shard: None,
+        accuracy: None,
         frequency_sensor: None,
         command_line: "bench".into(),
     }

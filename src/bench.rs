@@ -62,8 +62,8 @@ pub struct BenchRun {
     pub value: f64,
     /// |value − reference| / |reference| (roll-up: the gap over L, reference 0)
     pub error: f64,
-    /// the run's energy-balance warning (likely unstable), if any
-    pub warning: Option<String>,
+    /// the run's warnings (energy balance, time-step error), each naming its cause
+    pub warnings: Vec<String>,
 }
 
 /// One reference problem and its runs.
@@ -251,17 +251,17 @@ fn ladder_runs(
                 rejected_steps: stats.rejected_steps,
                 value,
                 error: rel(value, reference),
-                warning: stats.warning(),
+                warnings: stats.warnings(),
             };
             log(&format!(
                 "{problem}: ρ∞ {rho}, {n} el, dt {dt}: {value:.6} (error {:.2e}), {wall:.2} s, {} steps, {} Newton{}",
                 run.error,
                 run.steps,
                 run.newton_iterations,
-                run.warning
-                    .as_deref()
+                run.warnings
+                    .iter()
                     .map(|w| format!(" — warning: {w}"))
-                    .unwrap_or_default()
+                    .collect::<String>()
             ));
             runs.push(run);
         }
@@ -454,7 +454,7 @@ fn rollup(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, Bench
             rejected_steps: sol.report.rejected_steps,
             value: gap,
             error: gap,
-            warning: None,
+            warnings: Vec::new(),
         });
     }
     Ok(BenchProblem {
@@ -513,7 +513,7 @@ fn bend45(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, Bench
             rejected_steps: sol.report.rejected_steps,
             value: x[2],
             error: d / scale,
-            warning: None,
+            warnings: Vec::new(),
         });
     }
     Ok(BenchProblem {
@@ -678,6 +678,7 @@ fn blade_campaign(
         threads,
         output: None,
         shard: None,
+        accuracy: None,
         frequency_sensor: None,
         command_line: "latdyn bench".into(),
     }
@@ -812,11 +813,10 @@ pub fn markdown(r: &BenchReport, command: &str, plot_file: Option<&str>) -> Stri
                 run.rejected_steps,
                 crate::plot::fmt_num(run.value),
                 run.error,
-                if run.warning.is_some() {
-                    " ⚠ unstable (energy grew)"
-                } else {
-                    ""
-                }
+                run.warnings
+                    .iter()
+                    .map(|w| format!(" ⚠ {}", w.split(':').next().unwrap_or(w)))
+                    .collect::<String>()
             ));
         }
         s.push('\n');

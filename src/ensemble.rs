@@ -333,6 +333,8 @@ pub struct Campaign {
     pub output: Option<PathBuf>,
     /// (K, N): run only variants with index % N == K − 1
     pub shard: Option<(usize, usize)>,
+    /// `--accuracy`: overrides every variant's `[solver] accuracy`
+    pub accuracy: Option<f64>,
     /// sensor (and component) whose dominant frequency becomes `first_bending_hz`
     pub frequency_sensor: Option<(String, usize)>,
     pub command_line: String,
@@ -365,7 +367,9 @@ pub struct Outcome {
     /// growth of the energy balance (see `RunStats::energy_growth`; None where it is not
     /// defined, e.g. models with applied loads)
     pub energy_growth: Option<f64>,
-    /// warnings about the variant's result (an energy balance that grew: probably unstable)
+    /// estimated relative time-discretisation error (see `RunStats::time_error_estimate`)
+    pub time_error_estimate: Option<f64>,
+    /// warnings about the variant's numbers, each naming its likely cause
     pub warnings: Vec<String>,
     /// full histories, kept only when asked for (single runs)
     pub history: Option<dynamics::History>,
@@ -409,7 +413,11 @@ pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
     for &gi in &global_index {
         let mut sets = c.base.clone();
         sets.extend(c.variants[gi].iter().cloned());
-        models.push(model::load(&c.model_path, &sets)?);
+        let mut m = model::load(&c.model_path, &sets)?;
+        if c.accuracy.is_some() {
+            m.solver.accuracy = c.accuracy;
+        }
+        models.push(m);
     }
     let reference = if models.is_empty() {
         let mut sets = c.base.clone();
@@ -703,6 +711,7 @@ pub fn run_to(
                         derived.push(("first_bending_hz".to_string(), f));
                     }
                 }
+                let warnings = stats.warnings();
                 let t_out = Instant::now();
                 if let Some(w) = &writer {
                     let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
@@ -714,6 +723,8 @@ pub fn run_to(
                         rejected_steps: stats.rejected_steps as u64,
                         wall_s: wall,
                         energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+                        time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
+                        warnings: warnings.join("\n"),
                     };
                     let mut r = Ok(());
                     for ti in 0..hist.t.len() {
@@ -752,7 +763,8 @@ pub fn run_to(
                     sensors: summaries,
                     derived,
                     energy_growth: stats.energy_growth,
-                    warnings: stats.warning().into_iter().collect(),
+                    time_error_estimate: stats.time_error_estimate,
+                    warnings,
                     history: keep_history.then_some(hist),
                     panicked: panicked.is_some(),
                 }
@@ -796,6 +808,7 @@ fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool) -> Outcome 
         sensors: summarize(m, &dynamics::History::default()),
         derived: Vec::new(),
         energy_growth: None,
+        time_error_estimate: None,
         warnings: Vec::new(),
         history: keep_history.then(|| dynamics::History {
             t: Vec::new(),

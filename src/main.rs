@@ -162,6 +162,10 @@ struct SweepArgs {
     /// run only the K-th of N interleaved subsets of the variants: K/N
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
     shard: Option<(usize, usize)>,
+    /// adaptive time steps meeting this relative local error (overrides `[solver]
+    /// accuracy`; `dt` becomes the first step, `dt_max` the largest)
+    #[arg(long, value_name = "TOL", value_parser = parse_accuracy)]
+    accuracy: Option<f64>,
     /// sensor (SENSOR or SENSOR.COMPONENT) whose dominant frequency is reported as
     /// derived.first_bending_hz
     #[arg(long, value_name = "SENSOR[.COMPONENT]")]
@@ -175,6 +179,17 @@ fn parse_mode_count(s: &str) -> Result<usize, String> {
         Ok(n) if (1..=MAX).contains(&n) => Ok(n),
         _ => Err(format!(
             "`{s}`: need a whole number of modes from 1 to {MAX}"
+        )),
+    }
+}
+
+/// `--accuracy`: a relative error target in (0, MAX_ACCURACY].
+fn parse_accuracy(s: &str) -> Result<f64, String> {
+    let max = latdyn::model::compile::MAX_ACCURACY;
+    match s.trim().parse::<f64>() {
+        Ok(a) if a > 0.0 && a <= max => Ok(a),
+        _ => Err(format!(
+            "`{s}`: need a relative error target greater than 0 and at most {max}"
         )),
     }
 }
@@ -198,6 +213,10 @@ struct RunArgs {
     output: Option<PathBuf>,
     #[command(flatten)]
     backend: BackendArgs,
+    /// adaptive time steps meeting this relative local error (overrides `[solver]
+    /// accuracy`; `dt` becomes the first step, `dt_max` the largest)
+    #[arg(long, value_name = "TOL", value_parser = parse_accuracy)]
+    accuracy: Option<f64>,
 }
 
 /// `latdyn plot FILE.h5 (--sensor S... | --x S --y S | --campbell P --derived D) -o OUT`
@@ -917,7 +936,10 @@ impl RunSink {
 fn run(args: &RunArgs) -> anyhow::Result<()> {
     use latdyn::output::{VariantState, VariantStatus};
     use std::sync::atomic::Ordering;
-    let m = args.model.load()?;
+    let mut m = args.model.load()?;
+    if args.accuracy.is_some() {
+        m.solver.accuracy = args.accuracy;
+    }
     let target = args.output.as_deref().map(claim_output).transpose()?;
     let (stage, _batcher) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
     let mut sink = match target {
@@ -971,6 +993,8 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             rejected_steps: stats.rejected_steps as u64,
             wall_s: wall,
             energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+            time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
+            warnings: stats.warnings().join("\n"),
         };
         // after an output error the last good flush is what stays
         if out_err.is_none() {
@@ -979,7 +1003,7 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             }
         }
     }
-    let warnings: Vec<String> = stats.warning().into_iter().collect();
+    let warnings: Vec<String> = stats.warnings();
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
@@ -1017,6 +1041,8 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "rejected_steps": stats.rejected_steps,
             "newton_iterations": stats.newton_iterations,
             "energy_growth": stats.energy_growth,
+            "time_error_estimate": stats.time_error_estimate,
+            "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
             "warnings": warnings,
             "wall_s": wall,
             "status": status,
@@ -1140,6 +1166,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         threads,
         output: args.output.clone(),
         shard: args.shard,
+        accuracy: args.accuracy,
         frequency_sensor,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
     };
@@ -1295,6 +1322,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "rejected_steps": o.rejected_steps,
                     "wall_s": o.wall_s,
                     "energy_growth": o.energy_growth,
+                    "time_error_estimate": o.time_error_estimate,
                     "warnings": o.warnings,
                     "sensors": sensors,
                     "derived": derived,

@@ -33,6 +33,10 @@
 //! /status/energy_growth    float64 [V]: growth of the energy balance (see
 //!                          `RunStats::energy_growth`; > 1e-3 means probably unstable),
 //!                          NaN where not defined (applied loads) or not yet run
+//! /status/time_error_estimate float64 [V]: estimated time-discretisation error of the
+//!                          sensors relative to their range, largest over the sensors
+//!                          (README "Accuracy"), NaN where not run
+//! /status/warnings         str [V]: the variant's warnings, one per line (empty: none)
 //! /status/global_index     int64 [V]: index of each variant in the whole campaign
 //!                          (differs from the row index when the campaign is sharded)
 //! /derived/<NAME>          float64 [V], NaN where not set (only names ever set exist)
@@ -137,6 +141,10 @@ pub struct VariantStatus {
     pub wall_s: f64,
     /// growth of the energy balance, NaN where not defined
     pub energy_growth: f64,
+    /// estimated relative time-discretisation error, NaN where not run
+    pub time_error_estimate: f64,
+    /// warnings about the variant's numbers, one per line
+    pub warnings: String,
 }
 
 impl Default for VariantStatus {
@@ -150,6 +158,8 @@ impl Default for VariantStatus {
             rejected_steps: 0,
             wall_s: f64::NAN,
             energy_growth: f64::NAN,
+            time_error_estimate: f64::NAN,
+            warnings: String::new(),
         }
     }
 }
@@ -956,6 +966,15 @@ impl CampaignWriter {
         write_f64(&st, "wall_s", &[nv], &col(|s| s.wall_s)).map_err(h5("/status/wall_s"))?;
         write_f64(&st, "energy_growth", &[nv], &col(|s| s.energy_growth))
             .map_err(h5("/status/energy_growth"))?;
+        write_f64(
+            &st,
+            "time_error_estimate",
+            &[nv],
+            &col(|s| s.time_error_estimate),
+        )
+        .map_err(h5("/status/time_error_estimate"))?;
+        let warnings: Vec<&str> = self.status.iter().map(|s| s.warnings.as_str()).collect();
+        write_strings(&st, "warnings", &warnings).map_err(h5("/status/warnings"))?;
         let icol = |f: fn(&VariantStatus) -> u64| {
             self.status
                 .iter()

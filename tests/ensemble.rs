@@ -19,6 +19,7 @@ fn campaign(model: &str, variants: Vec<Vec<(String, f64)>>, threads: usize) -> C
         threads,
         output: None,
         shard: None,
+        accuracy: None,
         frequency_sensor: None,
         command_line: "test".into(),
     }

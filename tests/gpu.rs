@@ -433,6 +433,7 @@ fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> Vec<latdyn::ensembl
         threads,
         output: None,
         shard: None,
+        accuracy: None,
         frequency_sensor: Some(("tip_flap".into(), 0)),
         command_line: "test".into(),
     };

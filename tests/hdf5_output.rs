@@ -99,6 +99,8 @@ fn write_campaign(path: &Path) {
             rejected_steps: 3,
             wall_s: 0.5,
             energy_growth: 2e-7,
+            time_error_estimate: 3e-4,
+            warnings: String::new(),
         },
     )
     .unwrap();
@@ -113,6 +115,8 @@ fn write_campaign(path: &Path) {
             rejected_steps: 7,
             wall_s: 0.25,
             energy_growth: f64::NAN,
+            time_error_estimate: f64::NAN,
+            warnings: "first line\nsecond line".into(),
         },
     )
     .unwrap();
@@ -194,6 +198,12 @@ fn campaign_round_trip_rust() {
     assert_eq!(st("wall_s").read_raw::<f64>().unwrap(), [0.5, 0.25]);
     let eg = st("energy_growth").read_raw::<f64>().unwrap();
     assert!(eg[0] == 2e-7 && eg[1].is_nan(), "{eg:?}");
+    let te = st("time_error_estimate").read_raw::<f64>().unwrap();
+    assert!(te[0] == 3e-4 && te[1].is_nan(), "{te:?}");
+    assert_eq!(
+        st("warnings").read_strings().unwrap(),
+        ["", "first line\nsecond line"]
+    );
     assert_eq!(st("global_index").read_raw::<i64>().unwrap(), [4, 7]);
 
     let d = f

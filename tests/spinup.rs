@@ -110,11 +110,11 @@ fn an_unstable_run_is_flagged_by_its_energy_balance_and_a_stable_one_is_not() {
         bad.energy_growth, good.energy_growth
     );
     assert!(bad.energy_growth.unwrap() > 0.1, "{:?}", bad.energy_growth);
-    assert!(bad.warning().unwrap().contains("unstable"));
+    assert!(bad.warnings()[0].contains("unstable"));
     assert!(
         good.energy_growth.unwrap() < 1e-6,
         "{:?}",
         good.energy_growth
     );
-    assert!(good.warning().is_none());
+    assert!(good.warnings().is_empty());
 }

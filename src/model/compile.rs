@@ -1831,6 +1831,30 @@ impl Compiler<'_> {
         if let Some(v) = &sp.dt_min {
             s.dt_min = self.positive(v, &f("dt_min"))?;
         }
+        if let Some(v) = &sp.accuracy {
+            let a = self.positive(v, &f("accuracy"))?;
+            if a > MAX_ACCURACY {
+                return Err(self.err(
+                    v.span(),
+                    f("accuracy"),
+                    format!(
+                        "must be at most {MAX_ACCURACY}, is {a} (a relative error target; \
+                         beyond 10 % the numbers are not worth computing)"
+                    ),
+                ));
+            }
+            s.accuracy = Some(a);
+        }
+        if let Some(v) = &sp.dt_max {
+            s.dt_max = self.positive(v, &f("dt_max"))?;
+            if s.dt_max < s.dt {
+                return Err(self.err(
+                    v.span(),
+                    f("dt_max"),
+                    format!("must be at least dt = {}, is {}", s.dt, s.dt_max),
+                ));
+            }
+        }
         if let Some(v) = &sp.load_steps {
             s.load_steps = self.integer(v, &f("load_steps"), 1)?;
         }
@@ -1850,6 +1874,9 @@ fn rect_torsion(b: f64, h: f64) -> f64 {
     let (a, c) = if b >= h { (b, h) } else { (h, b) };
     a * c.powi(3) * (1.0 / 3.0 - 0.21 * (c / a) * (1.0 - c.powi(4) / (12.0 * a.powi(4))))
 }
+
+/// Largest `[solver] accuracy` (and `--accuracy`): a relative local error target.
+pub const MAX_ACCURACY: f64 = 0.1;
 
 /// Largest accepted `[solver] tol` (see the check in the solver table).
 pub const MAX_TOL: f64 = 1e-2;

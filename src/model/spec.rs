@@ -535,6 +535,9 @@ pub struct SolverSpec {
     /// "modified" (default) or "full"
     pub newton: Option<Spanned<String>>,
     pub dt_min: Option<Spanned<Num>>,
+    /// relative local error target: turns on adaptive steps
+    pub accuracy: Option<Spanned<Num>>,
+    pub dt_max: Option<Spanned<Num>>,
     pub load_steps: Option<Spanned<Num>>,
     pub rayleigh_alpha: Option<Spanned<Num>>,
     pub rayleigh_beta: Option<Spanned<Num>>,

@@ -264,6 +264,11 @@ pub struct SolverSettings {
     pub modified_newton: bool,
     /// smallest step before the run gives up
     pub dt_min: f64,
+    /// relative local error target of the adaptive step controller (`None`: fixed steps
+    /// of `dt`, cut only where Newton fails); with a target `dt` is the first step
+    pub accuracy: Option<f64>,
+    /// largest step the controller may take (infinite: bounded by the output grid only)
+    pub dt_max: f64,
     /// Rayleigh damping C = alpha M + beta K (element level)
     pub rayleigh_alpha: f64,
     pub rayleigh_beta: f64,
@@ -282,6 +287,8 @@ impl Default for SolverSettings {
             max_iter: 25,
             modified_newton: true,
             dt_min: 1e-9,
+            accuracy: None,
+            dt_max: f64::INFINITY,
             rayleigh_alpha: 0.0,
             rayleigh_beta: 0.0,
             load_steps: 1,

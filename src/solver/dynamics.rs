@@ -106,6 +106,13 @@ pub struct RunStats {
     /// integration went unstable. `None` when the model has applied loads (their work is
     /// not tracked).
     pub energy_growth: Option<f64>,
+    /// Estimated time-discretisation error of the sensors, relative to each sensor's
+    /// range, largest over the sensors (see [`TimeError`]); `None` before any step.
+    pub time_error_estimate: Option<f64>,
+    /// the same per sensor (in model order)
+    pub time_error_by_sensor: Vec<f64>,
+    /// warnings raised during the run beyond the energy and time-error checks
+    pub notes: Vec<String>,
 }
 
 impl RunStats {
@@ -113,8 +120,15 @@ impl RunStats {
     /// runs of the shipped scenes show none at all, an unstable spin-up run 0.38).
     pub const ENERGY_GROWTH_LIMIT: f64 = 1e-3;
 
+    /// Every warning about this run's numbers, each naming its likely cause.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w: Vec<String> = self.energy_warning().into_iter().collect();
+        w.extend(self.notes.iter().cloned());
+        w
+    }
+
     /// A warning for the user when the energy balance says the run went unstable.
-    pub fn warning(&self) -> Option<String> {
+    pub fn energy_warning(&self) -> Option<String> {
         let g = self.energy_growth?;
         (g > Self::ENERGY_GROWTH_LIMIT).then(|| {
             format!(
