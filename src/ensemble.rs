@@ -365,7 +365,8 @@ pub struct Outcome {
     /// growth of the energy balance (see `RunStats::energy_growth`; None where it is not
     /// defined, e.g. models with applied loads)
     pub energy_growth: Option<f64>,
-    /// warnings about the variant's result (an energy balance that grew: probably unstable)
+    /// warnings about the variant's result (an energy balance that grew: probably
+    /// unstable; `first_bending_hz: <kind>: ...` from `--frequency`, see crate::frequency)
     pub warnings: Vec<String>,
     /// full histories, kept only when asked for (single runs)
     pub history: Option<dynamics::History>,
@@ -693,14 +694,18 @@ pub fn run_to(
                 };
                 let summaries = summarize(m, &hist);
                 let mut derived = Vec::new();
+                let mut warnings: Vec<String> = stats.warning().into_iter().collect();
                 if let (Some((name, comp)), VariantState::Completed) = (&c.frequency_sensor, state)
                 {
                     if let Some(k) = m.sensor_index(name) {
                         let x: Vec<f64> = hist.values[k].iter().map(|s| s[*comp]).collect();
                         let dt = hist.t.get(1).map(|t1| t1 - hist.t[0]).unwrap_or(0.0);
-                        let f = crate::signal::dominant_frequency(&x, dt, 0.0, 0.5 / dt)
-                            .unwrap_or(f64::NAN);
-                        derived.push(("first_bending_hz".to_string(), f));
+                        let fb = crate::frequency::first_bending(m, &x, dt);
+                        derived.push(("first_bending_hz".to_string(), fb.hz));
+                        if let Some(e) = fb.eig_hz {
+                            derived.push(("first_bending_eig_hz".to_string(), e));
+                        }
+                        warnings.extend(fb.warnings);
                     }
                 }
                 let t_out = Instant::now();
@@ -752,7 +757,7 @@ pub fn run_to(
                     sensors: summaries,
                     derived,
                     energy_growth: stats.energy_growth,
-                    warnings: stats.warning().into_iter().collect(),
+                    warnings,
                     history: keep_history.then_some(hist),
                     panicked: panicked.is_some(),
                 }
