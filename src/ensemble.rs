@@ -700,7 +700,7 @@ pub fn run_to(
                     if let Some(k) = m.sensor_index(name) {
                         let x: Vec<f64> = hist.values[k].iter().map(|s| s[*comp]).collect();
                         let dt = hist.t.get(1).map(|t1| t1 - hist.t[0]).unwrap_or(0.0);
-                        let fb = crate::frequency::first_bending(m, &x, dt);
+                        let fb = crate::frequency::first_bending(m, (k, *comp), &x, dt);
                         derived.push(("first_bending_hz".to_string(), fb.hz));
                         if let Some(e) = fb.eig_hz {
                             derived.push(("first_bending_eig_hz".to_string(), e));

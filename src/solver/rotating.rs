@@ -259,14 +259,17 @@ pub struct RotatingModes {
     pub mass: Vec<f64>,
     /// for each shape: the share of its beam motion that is deformation, see
     /// [`deformation_share`] (0 = every beam moves rigidly, e.g. the rigid flap mode of
-    /// an articulated blade; about 0.3 or more for bending modes)
+    /// an articulated blade; 0.3 or more for bending modes)
     pub deformation: Vec<f64>,
+    /// the steady rotating state the modes are about (coordinates in the ground frame at
+    /// t = 0), for mapping shapes to sensors
+    pub steady: State,
 }
 
 /// Modes whose [`RotatingModes::deformation`] is below this move their beams rigidly
-/// (hinge, mechanism or hub modes): measured 1e-6 or less for the rigid flap of the
-/// shipped blade, 0.3 to 0.6 for elastic beam modes, so any value from 1e-3 to 0.1
-/// separates them; 0.05 leaves margin on both sides.
+/// (hinge, mechanism or hub modes): measured 4e-5 to 1.5e-4 for the rigid flap of the
+/// shipped blade (Ω = 1 to 12 rad/s), 0.3 to 0.96 for its elastic flap and lag modes, so
+/// any value from 1e-3 to 0.2 separates them; 0.05 leaves margin on both sides.
 pub const RIGID_DEFORMATION: f64 = 0.05;
 
 impl RotatingModes {
@@ -369,6 +372,7 @@ pub fn rotating_modes_with_shapes(
         mass_shapes,
         mass: m_sym,
         deformation,
+        steady: fr.base.clone(),
     })
 }
 
@@ -851,6 +855,18 @@ mod tests {
             mass_shapes,
             mass: m,
             deformation: Vec::new(),
+            steady: State {
+                t: 0.0,
+                q: Vec::new(),
+                v: Vec::new(),
+                a: Vec::new(),
+                spin: Vec::new(),
+                locked: Vec::new(),
+                body_x: Vec::new(),
+                body_r: Vec::new(),
+                node_u: Vec::new(),
+                node_r: Vec::new(),
+            },
         }
     }
 
