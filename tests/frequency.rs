@@ -167,16 +167,20 @@ fn rigid_flap_is_skipped_and_the_lag_mode_a_flap_moment_does_not_see_too() {
     // lead-lag mode (4.754 Hz, `latdyn modes`) below the first elastic flap mode (5.191
     // Hz); the flapwise mid-span moment does not see the lag mode about the unconed steady
     // state, so the eigenvalue beside first_bending_hz must be the flap mode's (1e-4:
-    // printing of `latdyn modes`), and the line found within 2 % of it.
+    // printing of `latdyn modes`) and the line found the flap line, not the lag line
+    // (29.87 rad/s, 8.4 % below): measured 31.75 rad/s, −2.7 % from the eigenvalue (the
+    // large release at this speed, as in the case), so warned with that cause.
     let (rows, _) = sweep(&["--vary", "omega=12:12:1"]);
     let (_, f, eig, w) = &rows[0];
     eprintln!("shipped blade, Ω = 12: FFT {f:.4} rad/s, eigenvalue {eig:.4}, warnings {w:?}");
     assert!(rel(*eig, 2.0 * PI * 5.191393) < 1e-4, "{eig}");
-    assert!(rel(*f, *eig) < 0.02, "{f} vs {eig}");
+    assert!(rel(*f, 2.0 * PI * 4.753767) > 0.05, "the lag line: {f}");
+    assert!(rel(*f, *eig) < 0.04, "{f} vs {eig}");
     assert!(
         rel(*f, *eig) < 0.01 || !w.is_empty(),
         "off by > 1 % without warning"
     );
+    assert!(w.iter().all(|x| x.contains("amplitude")), "{w:?}");
 }
 
 #[test]
