@@ -6,9 +6,11 @@ use common::*;
 use latdyn::solver::rotating::{find_spin, rotating_modes_with_shapes, RIGID_DEFORMATION};
 use std::f64::consts::PI;
 
-/// `latdyn sweep ... --frequency mid_moment --json` → per variant (Ω, first_bending [rad/s],
-/// eigenvalue [rad/s], warnings), plus stderr.
-fn sweep(args: &[&str]) -> (Vec<(f64, f64, f64, Vec<String>)>, String) {
+/// One variant: Ω, first_bending [rad/s], eigenvalue [rad/s], warnings.
+type Row = (f64, f64, f64, Vec<String>);
+
+/// `latdyn sweep ... --frequency mid_moment --json` → per variant a [`Row`], plus stderr.
+fn sweep(args: &[&str]) -> (Vec<Row>, String) {
     let mut a = vec!["sweep", "models/flapping_blade.toml"];
     a.extend_from_slice(args);
     a.extend_from_slice(&["--frequency", "mid_moment", "--json"]);
