@@ -213,3 +213,32 @@ fn without_a_spinning_hub_the_strongest_line_is_kept_and_a_short_record_is_warne
     let long = run("t_end=20");
     assert_eq!(long["warnings"].as_array().unwrap().len(), 0, "{long}");
 }
+
+#[test]
+fn a_mode_the_release_does_not_excite_gives_nan_and_a_not_excited_warning() {
+    // Shipped blade released in the plane of rotation (tilt 0): nothing drives it out of
+    // the plane, the flapwise moment stays 0 and there is no line at the first elastic
+    // flap mode. No number may be reported: NaN (JSON null) with the cause named; the
+    // eigenvalue is still given.
+    let (rows, err) = sweep(&[
+        "--vary",
+        "omega=6:6:1",
+        "--set",
+        "tilt=0",
+        "--set",
+        "t_end=3",
+    ]);
+    let (_, f, eig, w) = &rows[0];
+    assert!(f.is_nan(), "{f}");
+    assert!(rel(*eig, 19.8585) < 1e-4, "{eig}");
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("first_bending_hz: not excited"),
+        "{}",
+        w[0]
+    );
+    assert!(
+        err.contains("1 variant(s): first_bending_hz: not excited"),
+        "{err}"
+    );
+}
