@@ -369,7 +369,9 @@ pub struct Outcome {
     pub energy_growth: Option<f64>,
     /// estimated relative time-discretisation error (see `RunStats::time_error_estimate`)
     pub time_error_estimate: Option<f64>,
-    /// warnings about the variant's numbers, each naming its likely cause
+    /// warnings about the variant's numbers, each naming its likely cause (energy
+    /// balance, time error, `first_bending_hz: <kind>: ...` from `--frequency`, see
+    /// crate::frequency)
     pub warnings: Vec<String>,
     /// full histories, kept only when asked for (single runs)
     pub history: Option<dynamics::History>,
@@ -701,17 +703,20 @@ pub fn run_to(
                 };
                 let summaries = summarize(m, &hist);
                 let mut derived = Vec::new();
+                let mut warnings = stats.warnings();
                 if let (Some((name, comp)), VariantState::Completed) = (&c.frequency_sensor, state)
                 {
                     if let Some(k) = m.sensor_index(name) {
                         let x: Vec<f64> = hist.values[k].iter().map(|s| s[*comp]).collect();
                         let dt = hist.t.get(1).map(|t1| t1 - hist.t[0]).unwrap_or(0.0);
-                        let f = crate::signal::dominant_frequency(&x, dt, 0.0, 0.5 / dt)
-                            .unwrap_or(f64::NAN);
-                        derived.push(("first_bending_hz".to_string(), f));
+                        let fb = crate::frequency::first_bending(m, (k, *comp), &x, dt);
+                        derived.push(("first_bending_hz".to_string(), fb.hz));
+                        if let Some(e) = fb.eig_hz {
+                            derived.push(("first_bending_eig_hz".to_string(), e));
+                        }
+                        warnings.extend(fb.warnings);
                     }
                 }
-                let warnings = stats.warnings();
                 let t_out = Instant::now();
                 if let Some(w) = &writer {
                     let mut g = w.lock().unwrap_or_else(|p| p.into_inner());

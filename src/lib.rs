@@ -14,6 +14,7 @@ pub mod assembly;
 pub mod bench;
 pub mod element;
 pub mod ensemble;
+pub mod frequency;
 pub mod gpu;
 pub mod joint;
 pub mod linalg;

@@ -1260,23 +1260,29 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             (None, _) => String::new(),
         }
     );
-    let flagged: Vec<usize> = outcomes
-        .iter()
-        .filter(|o| !o.warnings.is_empty())
-        .map(|o| o.global_index)
-        .collect();
-    if !flagged.is_empty() {
-        let shown: Vec<String> = flagged.iter().take(20).map(|i| i.to_string()).collect();
-        eprintln!(
-            "warning: {} variant(s) completed with an energy balance that grew (probably \
-             unstable; reduce dt or lower rho_inf): indices {}{}",
-            flagged.len(),
-            shown.join(", "),
-            if flagged.len() > shown.len() {
-                ", …"
-            } else {
-                ""
+    // per kind of warning: how many variants, which (first 20), and the first text in full
+    let mut kinds: Vec<(String, Vec<usize>, String)> = Vec::new();
+    for o in &outcomes {
+        for w in &o.warnings {
+            let kind = latdyn::frequency::warning_kind(w);
+            match kinds.iter_mut().find(|(k, _, _)| *k == kind) {
+                Some((_, idx, _)) => {
+                    if idx.last() != Some(&o.global_index) {
+                        idx.push(o.global_index)
+                    }
+                }
+                None => kinds.push((kind, vec![o.global_index], w.clone())),
             }
+        }
+    }
+    for (kind, idx, first) in &kinds {
+        let shown: Vec<String> = idx.iter().take(20).map(|i| i.to_string()).collect();
+        eprintln!(
+            "warning: {} variant(s): {kind}: indices {}{} (variant {}: {first})",
+            idx.len(),
+            shown.join(", "),
+            if idx.len() > shown.len() { ", …" } else { "" },
+            idx[0]
         );
     }
     if args.model.json {

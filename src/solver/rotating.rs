@@ -257,6 +257,29 @@ pub struct RotatingModes {
     /// the MAC of a shape from another step against these shapes must be weighted with
     /// this one matrix, not with that step's own
     pub mass: Vec<f64>,
+    /// for each shape: the share of its beam motion that is deformation, see
+    /// [`deformation_share`] (0 = every beam moves rigidly, e.g. the rigid flap mode of
+    /// an articulated blade; 0.3 or more for bending modes)
+    pub deformation: Vec<f64>,
+    /// the steady rotating state the modes are about (coordinates in the ground frame at
+    /// t = 0), for mapping shapes to sensors
+    pub steady: State,
+}
+
+/// Modes whose [`RotatingModes::deformation`] is below this move their beams rigidly
+/// (hinge, mechanism or hub modes): measured 4e-5 to 1.5e-4 for the rigid flap of the
+/// shipped blade (Ω = 1 to 12 rad/s), 0.3 to 0.96 for its elastic flap and lag modes, so
+/// any value from 1e-3 to 0.2 separates them; 0.05 leaves margin on both sides.
+pub const RIGID_DEFORMATION: f64 = 0.05;
+
+impl RotatingModes {
+    /// Index (into the ascending frequencies) of the lowest mode that deforms a beam
+    /// (deformation share ≥ [`RIGID_DEFORMATION`]) and has a nonzero frequency, among
+    /// the modes with shapes. None when no such mode was found.
+    pub fn first_elastic(&self) -> Option<usize> {
+        (0..self.deformation.len())
+            .find(|&k| self.deformation[k] >= RIGID_DEFORMATION && self.frequencies_hz[k] > 0.0)
+    }
 }
 
 /// Find the steady rotating state and the modes about it.
@@ -335,6 +358,11 @@ pub fn rotating_modes_with_shapes(
         .map(|ij| 0.5 * (m[ij] + m[(ij % n) * n + ij / n]))
         .collect();
     let mass_shapes = qm.shapes.iter().map(|x| mat_vec(&m_sym, x)).collect();
+    let deformation = qm
+        .shapes
+        .iter()
+        .map(|x| deformation_share(model, &fr.base, x))
+        .collect();
     Ok(RotatingModes {
         omega: norm(spin.omega),
         frequencies_hz: qm.frequencies_hz,
@@ -343,7 +371,98 @@ pub fn rotating_modes_with_shapes(
         shapes: qm.shapes,
         mass_shapes,
         mass: m_sym,
+        deformation,
+        steady: fr.base.clone(),
     })
+}
+
+/// Share of a mode's beam motion that is deformation rather than rigid motion of each
+/// beam: the mode's real and imaginary parts are mapped (linearised about `base` by
+/// central differences) to every beam node's displacement u_i and rotation θ_i, the
+/// best rigid motion of each beam (u = a + φ × x, θ = φ; rotations weighted by the
+/// beam's length so both count in metres) is fitted by least squares, and the share is
+/// √(Σ residual² / Σ motion²) over all beams. A mode that moves no beam node (a body
+/// alone) has share 0. Independent of frequencies and of the hub speed, so it tells a
+/// hinge's rigid flap (share ~0 whatever its frequency, spring or hinge offset) from
+/// elastic bending (share ~0.3 or more).
+pub fn deformation_share(model: &Model, base: &State, shape: &[C64]) -> f64 {
+    let (mut res2, mut tot2) = (0.0, 0.0);
+    for part in 0..2 {
+        let p: Vec<f64> = shape
+            .iter()
+            .map(|z| if part == 0 { z.re } else { z.im })
+            .collect();
+        let big = p.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        if big == 0.0 || !big.is_finite() {
+            continue;
+        }
+        let h = 1e-6 / big;
+        let pose = |sgn: f64| {
+            let dx: Vec<f64> = p.iter().map(|x| sgn * h * x).collect();
+            let mut s = base.clone();
+            joint::apply_increment(model, &mut s, &dx);
+            joint::update_kinematics(model, &mut s);
+            s
+        };
+        let (sp, sm) = (pose(1.0), pose(-1.0));
+        for beam in &model.beams {
+            let x: Vec<Vec3> = beam
+                .nodes
+                .iter()
+                .map(|&nd| joint::node_position(model, base, nd))
+                .collect();
+            let nn = x.len().max(1) as f64;
+            let c = scale(x.iter().fold([0.0; 3], |a, &b| add(a, b)), 1.0 / nn);
+            let len = x
+                .iter()
+                .fold(0.0f64, |m, &xi| m.max(norm(sub(xi, c))))
+                .max(f64::MIN_POSITIVE);
+            // rows: u_i ≈ a − skew(x_i − c) φ (3 rows), len·θ_i ≈ len·φ (3 rows)
+            let mut g = [0.0; 36];
+            let mut r = [0.0; 6];
+            let mut rows: Vec<([f64; 6], f64)> = Vec::with_capacity(6 * beam.nodes.len());
+            for (i, &nd) in beam.nodes.iter().enumerate() {
+                let u = scale(sub(sp.node_u[nd], sm.node_u[nd]), 0.5 / h);
+                let dr = mat_mul(&sp.node_r[nd], &transpose(&sm.node_r[nd]));
+                let th = scale(rot_log(&dr), 0.5 / h);
+                let y = sub(x[i], c);
+                let sk = skew(y);
+                for k in 0..3 {
+                    let mut row = [0.0; 6];
+                    row[k] = 1.0;
+                    for j in 0..3 {
+                        row[3 + j] = -sk[k][j];
+                    }
+                    rows.push((row, u[k]));
+                    let mut row = [0.0; 6];
+                    row[3 + k] = len;
+                    rows.push((row, len * th[k]));
+                }
+            }
+            for (row, b) in &rows {
+                for i in 0..6 {
+                    r[i] += row[i] * b;
+                    for j in 0..6 {
+                        g[i * 6 + j] += row[i] * row[j];
+                    }
+                }
+            }
+            let mut coef = r;
+            if dense_solve(&g, 6, &mut coef).is_err() {
+                continue;
+            }
+            for (row, b) in &rows {
+                let fit: f64 = row.iter().zip(&coef).map(|(a, c)| a * c).sum();
+                res2 += (b - fit).powi(2);
+                tot2 += b * b;
+            }
+        }
+    }
+    if tot2 > 0.0 {
+        (res2 / tot2).sqrt()
+    } else {
+        0.0
+    }
 }
 
 /// M x for a real row-major n×n M and a complex x of length n.
@@ -735,6 +854,19 @@ mod tests {
             shapes,
             mass_shapes,
             mass: m,
+            deformation: Vec::new(),
+            steady: State {
+                t: 0.0,
+                q: Vec::new(),
+                v: Vec::new(),
+                a: Vec::new(),
+                spin: Vec::new(),
+                locked: Vec::new(),
+                body_x: Vec::new(),
+                body_r: Vec::new(),
+                node_u: Vec::new(),
+                node_r: Vec::new(),
+            },
         }
     }
 

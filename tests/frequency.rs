@@ -1,0 +1,244 @@
+//! `sweep --frequency`: the line of the first elastic mode, checked against the
+//! rotating-frame eigenvalue, with a warning beside every value that may be wrong.
+
+mod common;
+use common::*;
+use latdyn::solver::rotating::{find_spin, rotating_modes_with_shapes, RIGID_DEFORMATION};
+use std::f64::consts::PI;
+
+/// One variant: Ω, first_bending [rad/s], eigenvalue [rad/s], warnings.
+type Row = (f64, f64, f64, Vec<String>);
+
+/// `latdyn sweep ... --frequency mid_moment --json` → per variant a [`Row`], plus stderr.
+fn sweep(args: &[&str]) -> (Vec<Row>, String) {
+    let mut a = vec!["sweep", "models/flapping_blade.toml"];
+    a.extend_from_slice(args);
+    a.extend_from_slice(&["--frequency", "mid_moment", "--json"]);
+    let out = latdyn(&a);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| {
+            let d = &x["derived"];
+            let hz = |k: &str| 2.0 * PI * d[k].as_f64().unwrap_or(f64::NAN);
+            let w = x["warnings"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|s| s.as_str().unwrap().to_string())
+                .collect();
+            (
+                x["parameters"]["omega"].as_f64().unwrap(),
+                hz("first_bending_hz"),
+                hz("first_bending_eig_hz"),
+                w,
+            )
+        })
+        .collect();
+    (rows, err)
+}
+
+const ISSUE: [&str; 10] = [
+    "--set", "L=1", "--set", "EI=1", "--set", "rhoA=1", "--set", "GJ=1", "--set", "EA=1e6",
+];
+
+#[test]
+fn issue_blade_at_twelve_reports_the_elastic_flap_line_not_the_three_omega_line() {
+    // Issue 14: at Ω̄ = 12 the largest line of the mid-span moment is at 35.60 rad/s (near
+    // 3Ω = 36); the first elastic flap mode is at 33.76 rad/s (`latdyn modes`). The line
+    // nearest the eigenvalue is now reported: 33.39 rad/s at the shipped dt = 0.005
+    // (33.46 at dt = 0.001, 33.39 over 40 s: converged in dt and record length), 1.1 %
+    // below the eigenvalue because the tilted release is a large motion (tilt 0.157: at
+    // tilt 0.02 the two agree to 0.27 %, the integrator's period error at ω·dt = 0.17).
+    // So: not the 3Ω line (> 4 % from 35.60), within 2 % of the eigenvalue, and, being
+    // more than 1 % off, warned with the cause named (the amplitude).
+    let mut args = vec!["--vary", "omega=10:12:2"];
+    args.extend_from_slice(&ISSUE);
+    let (rows, err) = sweep(&args);
+    let (om, f, eig, w) = &rows[1];
+    assert_eq!(*om, 12.0);
+    eprintln!("Ω̄ = 12: FFT {f:.4} rad/s, eigenvalue {eig:.4}, warnings {w:?}");
+    // eigenvalue: `latdyn modes` gives 33.758 rad/s; 1e-4 covers printing
+    assert!(rel(*eig, 33.758) < 1e-4, "{eig}");
+    assert!(rel(*f, 35.60) > 0.04, "picked the 3Ω line: {f}");
+    assert!(rel(*f, *eig) < 0.02, "{f} vs {eig}");
+    assert!(
+        rel(*f, *eig) < 0.01 || !w.is_empty(),
+        "off by > 1 % without warning"
+    );
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("first_bending_hz: disagrees with the eigenvalue")
+            && w[0].contains("amplitude"),
+        "{}",
+        w[0]
+    );
+    assert!(
+        err.contains("1 variant(s): first_bending_hz: disagrees"),
+        "{err}"
+    );
+    // Ω̄ = 10: the mode's line is the right one to 0.2 %, no warning
+    let (_, f, eig, w) = &rows[0];
+    assert!(rel(*f, *eig) < 0.005 && w.is_empty(), "{f} vs {eig}: {w:?}");
+    // a small release: the same line within 0.5 % of the eigenvalue (measured 0.27 %:
+    // the integrator's period error), warning-free
+    let mut args = vec!["--vary", "omega=12:12:1", "--set", "tilt=0.02"];
+    args.extend_from_slice(&ISSUE);
+    let (rows, _) = sweep(&args);
+    let (_, f, eig, w) = &rows[0];
+    eprintln!("Ω̄ = 12, tilt 0.02: FFT {f:.4} rad/s, eigenvalue {eig:.4}");
+    assert!(rel(*f, *eig) < 0.005 && w.is_empty(), "{f} vs {eig}: {w:?}");
+}
+
+#[test]
+fn shipped_blade_campaign_speeds_away_from_crossings_are_unchanged_and_warning_free() {
+    // docs/studies/blade_speed_campaign.md (shipped model and settings, 10 s record): the
+    // FFT column there is the old "largest line" value. Away from the harmonic crossings
+    // the largest line is the mode's, so the value must be the same (the table prints 4
+    // decimals in rad/s: 1e-4) and carry no warning.
+    let table = [
+        (1.0, 13.1378),
+        (2.0, 13.8434),
+        (5.0, 17.9941),
+        (6.0, 19.8097),
+        (9.0, 25.9369),
+    ];
+    let csv = std::env::temp_dir().join(format!("latdyn_freq_{}.csv", std::process::id()));
+    let body: String = table.iter().map(|(o, _)| format!("{o}\n")).collect();
+    std::fs::write(&csv, format!("omega\n{body}")).unwrap();
+    let (rows, err) = sweep(&["--variants", csv.to_str().unwrap()]);
+    let _ = std::fs::remove_file(&csv);
+    for ((om, f, eig, w), (om_t, f_t)) in rows.iter().zip(table) {
+        assert_eq!(*om, om_t);
+        eprintln!("Ω = {om}: FFT {f:.4} rad/s (table {f_t}), eigenvalue {eig:.4}");
+        assert!((f - f_t).abs() < 1e-4, "Ω = {om}: {f} vs {f_t}");
+        assert!(w.is_empty(), "Ω = {om}: {w:?}");
+    }
+    assert!(!err.contains("warning"), "{err}");
+}
+
+#[test]
+fn third_harmonic_within_the_resolution_of_the_mode_is_warned_as_ambiguous() {
+    // Shipped blade at Ω = 7.5: 3Ω = 22.5 rad/s, the first elastic flap eigenvalue 22.83
+    // (docs/studies/blade_speed_campaign.md): 0.33 rad/s apart, less than the resolution
+    // 2π/10 s = 0.63 rad/s, so the 10 s record cannot separate the forced response from
+    // the mode; the FFT gives 22.44 (−1.7 %), which must carry the warning naming 3Ω.
+    let (rows, err) = sweep(&["--vary", "omega=7.5:7.5:1"]);
+    let (_, f, eig, w) = &rows[0];
+    eprintln!("Ω = 7.5: FFT {f:.4} rad/s, eigenvalue {eig:.4}, warnings {w:?}");
+    assert!(rel(*eig, 22.8281) < 1e-4, "{eig}");
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("first_bending_hz: ambiguous spectrum") && w[0].contains("3Ω"),
+        "{}",
+        w[0]
+    );
+    assert!(
+        err.contains("first_bending_hz: ambiguous spectrum"),
+        "{err}"
+    );
+}
+
+#[test]
+fn rigid_flap_is_skipped_and_the_lag_mode_a_flap_moment_does_not_see_too() {
+    // The rule that picks the wanted mode, part 1: deformation share (beam motion that is
+    // not a rigid motion of the beam). Rigid flap: measured 4e-5 (Ω = 6) to 1.5e-4
+    // (Ω = 12), the linearisation's round-off about the stretched steady state; elastic
+    // modes 0.3 to 0.96. Bounds: 1e-2 and 4× RIGID_DEFORMATION = 0.05.
+    for omega in [1.0, 6.0, 12.0] {
+        let m = shipped("flapping_blade.toml", &[("omega", omega)]);
+        let rm = rotating_modes_with_shapes(&m, find_spin(&m).unwrap(), 4).unwrap();
+        eprintln!("Ω = {omega}: deformation shares {:?}", rm.deformation);
+        assert!(
+            rm.deformation[0] < 1e-2 * RIGID_DEFORMATION,
+            "{:?}",
+            rm.deformation
+        );
+        assert!(
+            rm.deformation[1] > 4.0 * RIGID_DEFORMATION,
+            "{:?}",
+            rm.deformation
+        );
+        assert_eq!(rm.first_elastic(), Some(1));
+    }
+    // Part 2: the sensor must see the mode. The shipped blade at Ω = 12 has its first
+    // lead-lag mode (4.754 Hz, `latdyn modes`) below the first elastic flap mode (5.191
+    // Hz); the flapwise mid-span moment does not see the lag mode about the unconed steady
+    // state, so the eigenvalue beside first_bending_hz must be the flap mode's (1e-4:
+    // printing of `latdyn modes`) and the line found the flap line, not the lag line
+    // (29.87 rad/s, 8.4 % below): measured 31.75 rad/s, −2.7 % from the eigenvalue (the
+    // large release at this speed, as in the issue's case), so warned with that cause.
+    let (rows, _) = sweep(&["--vary", "omega=12:12:1"]);
+    let (_, f, eig, w) = &rows[0];
+    eprintln!("shipped blade, Ω = 12: FFT {f:.4} rad/s, eigenvalue {eig:.4}, warnings {w:?}");
+    assert!(rel(*eig, 2.0 * PI * 5.191393) < 1e-4, "{eig}");
+    assert!(rel(*f, 2.0 * PI * 4.753767) > 0.05, "the lag line: {f}");
+    assert!(rel(*f, *eig) < 0.04, "{f} vs {eig}");
+    assert!(
+        rel(*f, *eig) < 0.01 || !w.is_empty(),
+        "off by > 1 % without warning"
+    );
+    assert!(w.iter().all(|x| x.contains("amplitude")), "{w:?}");
+}
+
+#[test]
+fn without_a_spinning_hub_the_strongest_line_is_kept_and_a_short_record_is_warned() {
+    // pendulum (no hub): the strongest line as before. 0.2 s holds a fraction of one
+    // swing: the value is kept (a number) but warned; over 20 s no warning.
+    let run = |t_end: &str| {
+        let out = latdyn(&[
+            "sweep",
+            "models/pendulum.toml",
+            "--vary",
+            "theta0=0.5:0.5:1",
+            "--set",
+            t_end,
+            "--frequency",
+            "angle.ry",
+            "--json",
+        ]);
+        assert_eq!(out.status.code(), Some(0));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["variants"][0].clone()
+    };
+    let short = run("t_end=0.2");
+    assert!(short["derived"]["first_bending_hz"].is_number());
+    assert!(short["derived"]["first_bending_eig_hz"].is_null());
+    let w = short["warnings"][0].as_str().unwrap();
+    assert!(w.starts_with("first_bending_hz: short record"), "{w}");
+    let long = run("t_end=20");
+    assert_eq!(long["warnings"].as_array().unwrap().len(), 0, "{long}");
+}
+
+#[test]
+fn a_mode_the_release_does_not_excite_gives_nan_and_a_not_excited_warning() {
+    // Shipped blade released in the plane of rotation (tilt 0): nothing drives it out of
+    // the plane, the flapwise moment stays 0 and there is no line at the first elastic
+    // flap mode. No number may be reported: NaN (JSON null) with the cause named; the
+    // eigenvalue is still given.
+    let (rows, err) = sweep(&[
+        "--vary",
+        "omega=6:6:1",
+        "--set",
+        "tilt=0",
+        "--set",
+        "t_end=3",
+    ]);
+    let (_, f, eig, w) = &rows[0];
+    assert!(f.is_nan(), "{f}");
+    assert!(rel(*eig, 19.8585) < 1e-4, "{eig}");
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("first_bending_hz: not excited"),
+        "{}",
+        w[0]
+    );
+    assert!(
+        err.contains("1 variant(s): first_bending_hz: not excited"),
+        "{err}"
+    );
+}
