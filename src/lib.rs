@@ -24,3 +24,4 @@ pub mod plot;
 pub mod sensors;
 pub mod signal;
 pub mod solver;
+pub mod verify;
