@@ -386,6 +386,8 @@ pub struct CampaignRun {
     pub outcomes: Vec<Outcome>,
     /// the campaign file could not be written mid-run (the last flush is what is on disk)
     pub output_error: Option<OutputError>,
+    /// what `--verify` measured (see [`run_verified_to`])
+    pub verification: Option<crate::verify::Verification>,
 }
 
 /// Compiled variants with their checked common layout.
@@ -566,6 +568,25 @@ pub fn run_to(
     progress: &(dyn Fn(usize, usize) + Sync),
     stage: &Stage,
     target: Option<OutputTarget>,
+) -> Result<CampaignRun, EnsembleError> {
+    run_verified_to(c, p, stop, keep_history, progress, stage, target, None)
+}
+
+/// [`run_to`], then, when `verify` names variants (global indices of this shard, see
+/// [`crate::verify::select`]), their refined runs on the same pool
+/// ([`crate::verify::run`]) once every variant has finished; what they measured is
+/// returned and written to the campaign file (`/verification`) before it is finished.
+/// Nothing is verified after an output error or an interruption.
+#[allow(clippy::too_many_arguments)]
+pub fn run_verified_to(
+    c: &Campaign,
+    p: &Prepared,
+    stop: &AtomicBool,
+    keep_history: bool,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    stage: &Stage,
+    target: Option<OutputTarget>,
+    verify: Option<&[usize]>,
 ) -> Result<CampaignRun, EnsembleError> {
     let nv = p.models.len();
     let writer = match target {
@@ -777,13 +798,30 @@ pub fn run_to(
             .collect()
     });
     let mut output_error = write_err.into_inner().unwrap_or_else(|p| p.into_inner());
+    // the campaign's own state: a signal during the verification leaves it complete
+    let stopped = stop.load(Ordering::SeqCst);
+    let verification = match verify {
+        Some(chosen) if output_error.is_none() && !stopped => Some(pool.install(|| {
+            crate::verify::run(
+                c,
+                &p.models,
+                &p.global_index,
+                &outcomes,
+                chosen,
+                stop,
+                stage,
+            )
+        })),
+        _ => None,
+    };
     if let Some(w) = writer {
-        let w = w.into_inner().unwrap_or_else(|p| p.into_inner());
-        let status = if stop.load(Ordering::Relaxed) {
-            "interrupted"
-        } else {
-            "complete"
-        };
+        let mut w = w.into_inner().unwrap_or_else(|p| p.into_inner());
+        if let Some(v) = &verification {
+            if let Err(e) = w.set_verification(&v.data()) {
+                output_error.get_or_insert(e);
+            }
+        }
+        let status = if stopped { "interrupted" } else { "complete" };
         // after an output error this last write usually fails too (the last good flush
         // stays); the first error is the one to report
         if let Err(e) = w.finish(status) {
@@ -793,6 +831,7 @@ pub fn run_to(
     Ok(CampaignRun {
         outcomes,
         output_error,
+        verification,
     })
 }
 
@@ -823,7 +862,8 @@ fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool) -> Outcome 
     }
 }
 
-fn summarize(m: &Model, h: &dynamics::History) -> Vec<SensorSummary> {
+/// Extremes and last value of every sensor component over a history.
+pub fn summarize(m: &Model, h: &dynamics::History) -> Vec<SensorSummary> {
     m.sensors
         .iter()
         .enumerate()

@@ -25,3 +25,4 @@ pub mod plot;
 pub mod sensors;
 pub mod signal;
 pub mod solver;
+pub mod verify;

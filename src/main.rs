@@ -170,6 +170,12 @@ struct SweepArgs {
     /// derived.first_bending_hz
     #[arg(long, value_name = "SENSOR[.COMPONENT]")]
     frequency: Option<String>,
+    /// after the campaign, rerun K of its variants (spread over it) with dt halved and
+    /// twice the elements, and report how much every sensor's extremes change: the
+    /// campaign's measured discretisation error (README "Verification"); with --shard,
+    /// only shard 1 verifies
+    #[arg(long, value_name = "K")]
+    verify: Option<usize>,
 }
 
 /// `--count`: at least one mode, and bounded so that `count + spares` cannot overflow.
@@ -1170,6 +1176,33 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         frequency_sensor,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
     };
+    // --verify K: K variants of shard 1 (the whole campaign when not sharded), checked
+    // before any variant runs
+    let verify_chosen: Option<Vec<usize>> = match (args.verify, args.shard) {
+        (None, _) => None,
+        (Some(k), shard) => {
+            let (s, n) = shard.unwrap_or((1, 1));
+            let shard1: Vec<usize> = (0..c.variants.len()).filter(|i| i % n == 0).collect();
+            let total = c.variants.len();
+            let mut note = format!(
+                "the campaign has {total} variant{}",
+                if total == 1 { "" } else { "s" }
+            );
+            if n > 1 {
+                note += &format!(
+                    "; verification runs in shard 1/{n}, which has {}",
+                    shard1.len()
+                );
+            }
+            latdyn::verify::check_count(k, shard1.len(), &note).map_err(|e| anyhow!(e))?;
+            if s == 1 {
+                Some(latdyn::verify::select(&shard1, k).map_err(|e| anyhow!(e))?)
+            } else {
+                eprintln!("note: --verify: verification runs in shard 1/{n} only; not in this shard {s}/{n}");
+                None
+            }
+        }
+    };
     let prepared = ensemble::prepare(&c)?;
     let stop = stop_flag();
     let bar = if std::io::stderr().is_terminal() {
@@ -1188,7 +1221,8 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     let ensemble::CampaignRun {
         outcomes,
         output_error,
-    } = ensemble::run_to(
+        verification,
+    } = ensemble::run_verified_to(
         &c,
         &prepared,
         &stop,
@@ -1203,6 +1237,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         },
         &stage,
         target,
+        verify_chosen.as_deref(),
     )
     .map_err(|e| anyhow!("{e}"))?;
     if let Some(b) = &batcher {
@@ -1285,6 +1320,12 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             idx[0]
         );
     }
+    if let Some(v) = &verification {
+        eprintln!("{}", v.summary());
+        for w in &v.warnings {
+            eprintln!("warning: verify: {w}");
+        }
+    }
     if args.model.json {
         let m0 = prepared.models.first();
         let vs: Vec<serde_json::Value> = outcomes
@@ -1335,7 +1376,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                 })
             })
             .collect();
-        let v = serde_json::json!({
+        let mut v = serde_json::json!({
             "status": status,
             "message": message,
             "failed_variants": n_failed,
@@ -1346,6 +1387,17 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             "adapter": stage.adapter,
             "threads": threads,
         });
+        if args.verify.is_some() {
+            v["verification"] = match &verification {
+                Some(x) => x.to_json(),
+                None if verify_chosen.is_none() => serde_json::json!({
+                    "skipped": "verification runs in shard 1 only"
+                }),
+                None => serde_json::json!({
+                    "skipped": "the campaign did not finish (interrupted or output failed)"
+                }),
+            };
+        }
         emit(&format!("{v}\n"))?;
     }
     let panicked: Vec<String> = outcomes

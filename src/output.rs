@@ -42,6 +42,30 @@
 //! /derived/<NAME>          float64 [V], NaN where not set (only names ever set exist)
 //! ```
 //!
+//! A campaign run with `sweep --verify K` also has (README "Discretisation error of a
+//! campaign"; `K` =
+//! variants verified, `W` = warnings):
+//!
+//! ```text
+//! /verification/target         float64 (scalar): the relative difference above which a
+//!                              warning is raised
+//! /verification/target_source  str (scalar): "--accuracy", "[solver] accuracy" or
+//!                              "default"
+//! /verification/variants       int64 [K]: global indices of the variants verified
+//! /verification/status         str [K]: "verified", or why the variant was not
+//! /verification/wall_s         float64 [K]: wall time of each refined run
+//! /verification/dt             float64 [K, 2]: solver dt of the base and the refined run
+//! /verification/elements       int64 [K, 2]: element count of the base and refined mesh
+//! /verification/max_rel_diff   float64 (scalar): largest relative difference (NaN if
+//!                              no variant was verified)
+//! /verification/warnings       str [W]
+//! /verification/rel_diff/<NAME>     float64 [K, C]: per variant and component, the
+//!                              change of the extremes relative to the scale (NaN
+//!                              where not verified); attr components (str [C])
+//! /verification/refined_min/<NAME>  float64 [K, C]: extremes of the refined runs
+//! /verification/refined_max/<NAME>  float64 [K, C]
+//! ```
+//!
 //! Samples never written read back as NaN (the fill value of `/sensors/*`).
 //!
 //! # Durability
@@ -502,6 +526,37 @@ struct SensorBuf {
     dirty: Vec<bool>,
 }
 
+/// What `sweep --verify` measured, as written under `/verification` (see the layout in
+/// the module docs; `K` = variants verified).
+#[derive(Clone, Debug, Default)]
+pub struct VerificationData {
+    pub target: f64,
+    pub target_source: String,
+    /// global indices [K]
+    pub variants: Vec<usize>,
+    /// [K]: "verified" or why not
+    pub status: Vec<String>,
+    /// [K]: wall time of each refined run
+    pub wall_s: Vec<f64>,
+    /// [K]: solver dt of the base and the refined run
+    pub dt: Vec<[f64; 2]>,
+    /// [K]: element count of the base and the refined mesh
+    pub elements: Vec<[usize; 2]>,
+    pub max_rel_diff: f64,
+    pub warnings: Vec<String>,
+    pub sensors: Vec<VerificationSensor>,
+}
+
+/// One sensor's verification figures, each [K, C] row-major.
+#[derive(Clone, Debug, Default)]
+pub struct VerificationSensor {
+    pub name: String,
+    pub components: Vec<String>,
+    pub rel_diff: Vec<f64>,
+    pub refined_min: Vec<f64>,
+    pub refined_max: Vec<f64>,
+}
+
 /// Incremental writer of one campaign file. See the [module docs](self) for the layout
 /// and the durability contract.
 ///
@@ -521,6 +576,8 @@ pub struct CampaignWriter {
     pipeline: FilterPipeline,
     /// Something changed since the last successful flush.
     dirty: bool,
+    /// `/verification`, once set
+    verification: Option<VerificationData>,
 }
 
 /// Whether `name` can name a sensor or derived quantity in every output format: an HDF5
@@ -644,6 +701,7 @@ impl CampaignWriter {
             derived: Vec::new(),
             pipeline: FilterPipeline::shuffle_deflate(8, DEFLATE_LEVEL),
             dirty: true,
+            verification: None,
         };
         w.flush()?;
         Ok(w)
@@ -722,6 +780,35 @@ impl CampaignWriter {
             }
         };
         column[variant] = value;
+        self.dirty = true;
+        Ok(())
+    }
+
+    /// Set `/verification` (written at the next flush or finish).
+    pub fn set_verification(&mut self, v: &VerificationData) -> Result<(), OutputError> {
+        for x in &v.sensors {
+            check_name("sensor", &x.name)?;
+            let kc = v.variants.len() * x.components.len();
+            if [&x.rel_diff, &x.refined_min, &x.refined_max]
+                .iter()
+                .any(|a| a.len() != kc)
+            {
+                return Err(OutputError::Invalid(format!(
+                    "verification of sensor {:?}: expected {kc} values per figure",
+                    x.name
+                )));
+            }
+        }
+        let k = v.variants.len();
+        if [v.status.len(), v.wall_s.len(), v.dt.len(), v.elements.len()]
+            .iter()
+            .any(|&n| n != k)
+        {
+            return Err(OutputError::Invalid(
+                "verification: one status, wall time, dt and element count per variant".into(),
+            ));
+        }
+        self.verification = Some(v.clone());
         self.dirty = true;
         Ok(())
     }
@@ -997,8 +1084,82 @@ impl CampaignWriter {
             write_f64(&derived, name, &[nv], values).map_err(h5(&format!("/derived/{name}")))?;
         }
 
+        if let Some(v) = &self.verification {
+            write_verification(file, v, h5)?;
+        }
+
         Ok(())
     }
+}
+
+/// `/verification` (see the layout in the module docs).
+fn write_verification<E>(file: &H5File, v: &VerificationData, h5: &E) -> Result<(), OutputError>
+where
+    E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
+{
+    let e = |what: &str| h5(&format!("/verification{what}"));
+    let g = file.create_group("verification").map_err(e(""))?;
+    let scalar = |name: &str, x: f64| -> H5Result<()> {
+        g.new_dataset::<f64>()
+            .scalar()
+            .create(name)?
+            .write_raw(&[x])
+    };
+    scalar("target", v.target).map_err(e("/target"))?;
+    write_scalar_string(&g, "target_source", &v.target_source).map_err(e("/target_source"))?;
+    let k = v.variants.len();
+    let idx: Vec<i64> = v
+        .variants
+        .iter()
+        .map(|&i| i64::try_from(i).unwrap_or(i64::MAX))
+        .collect();
+    write_i64(&g, "variants", &idx).map_err(e("/variants"))?;
+    let status: Vec<&str> = v.status.iter().map(String::as_str).collect();
+    write_strings(&g, "status", &status).map_err(e("/status"))?;
+    write_f64(&g, "wall_s", &[k], &v.wall_s).map_err(e("/wall_s"))?;
+    let dt: Vec<f64> = v.dt.iter().flatten().copied().collect();
+    write_f64(&g, "dt", &[k, 2], &dt).map_err(e("/dt"))?;
+    let elements: Vec<i64> = v
+        .elements
+        .iter()
+        .flatten()
+        .map(|&n| i64::try_from(n).unwrap_or(i64::MAX))
+        .collect();
+    let ds = g
+        .new_dataset::<i64>()
+        .shape([k, 2])
+        .create("elements")
+        .map_err(e("/elements"))?;
+    if k > 0 {
+        ds.write_raw(&elements).map_err(e("/elements"))?;
+    }
+    scalar("max_rel_diff", v.max_rel_diff).map_err(e("/max_rel_diff"))?;
+    let warnings: Vec<&str> = v.warnings.iter().map(String::as_str).collect();
+    write_strings(&g, "warnings", &warnings).map_err(e("/warnings"))?;
+    type Figure = fn(&VerificationSensor) -> &Vec<f64>;
+    let figures: [(&str, Figure); 3] = [
+        ("rel_diff", |x| &x.rel_diff),
+        ("refined_min", |x| &x.refined_min),
+        ("refined_max", |x| &x.refined_max),
+    ];
+    for (group, get) in figures {
+        let sub = g.create_group(group).map_err(e(&format!("/{group}")))?;
+        for x in &v.sensors {
+            let what = format!("/{group}/{}", x.name);
+            let nc = x.components.len();
+            let ds = sub
+                .new_dataset::<f64>()
+                .shape([k, nc])
+                .create(&x.name)
+                .map_err(e(&what))?;
+            if k * nc > 0 {
+                ds.write_raw(get(x)).map_err(e(&what))?;
+            }
+            let comps: Vec<&str> = x.components.iter().map(String::as_str).collect();
+            set_ds_string_array_attr(&ds, "components", &comps).map_err(e(&what))?;
+        }
+    }
+    Ok(())
 }
 
 type H5Result<T> = Result<T, rust_hdf5::Hdf5Error>;

@@ -20,15 +20,43 @@ type Result<T> = std::result::Result<T, ModelError>;
 
 /// Reads and compiles a model file; `overrides` replace parameter values (`--set`).
 pub fn load(path: &Path, overrides: &[(String, f64)]) -> Result<Model> {
+    load_refined(path, overrides, 1)
+}
+
+/// [`load`] with the discretisation refined by `factor` after the parameters are
+/// resolved (see [`compile_str_refined`]); `factor` 1 is [`load`].
+pub fn load_refined(path: &Path, overrides: &[(String, f64)], factor: usize) -> Result<Model> {
     let file = path.display().to_string();
     let lim = Limits::from_env().map_err(|e| ModelError::file(&file, None, e))?;
     let text = limits::read_capped(path, lim.model_bytes, "model file")
         .map_err(|e| ModelError::file(&file, None, e))?;
-    compile_str(&text, &file, overrides)
+    compile_str_refined(&text, &file, overrides, factor)
 }
 
 /// Compiles model text; `path` names the file in messages and in `Model::path`.
 pub fn compile_str(text: &str, path: &str, overrides: &[(String, f64)]) -> Result<Model> {
+    compile_str_refined(text, path, overrides, 1)
+}
+
+/// [`compile_str`] with the discretisation refined by `factor` (≥ 1), whatever the
+/// file's parameters are called: every beam gets `factor` × its element count, and the
+/// solver's `dt`, `dt_min` and `dt_max` are divided by `factor`. The refined model
+/// reports what the base model reports, at the same points and times:
+/// - interior nodes that coincide with the base mesh keep their names (`BEAM:k` of the
+///   base mesh is `BEAM:k` here), so supports, loads, joints and sensors that name
+///   them act on the same material point; the new nodes between them are named
+///   `BEAM:k+j/factor`;
+/// - a `beam_displacement` sensor reads the nodes of the base mesh only (the same
+///   components);
+/// - `output_dt = 0` (every step) becomes the base `dt`: the output grid is unchanged.
+///
+/// `sweep --verify` runs variants refined by 2 against the campaign's own runs.
+pub fn compile_str_refined(
+    text: &str,
+    path: &str,
+    overrides: &[(String, f64)],
+    factor: usize,
+) -> Result<Model> {
     let limits = Limits::from_env().map_err(|e| ModelError::file(path, None, e))?;
     let spec = spec::parse(text, path)?;
     Compiler {
@@ -36,6 +64,7 @@ pub fn compile_str(text: &str, path: &str, overrides: &[(String, f64)]) -> Resul
         text,
         params: Params::default(),
         limits,
+        refine: factor.max(1),
     }
     .compile(&spec, overrides)
 }
@@ -124,6 +153,9 @@ struct Compiler<'a> {
     /// parameters resolved so far (all of them once parameters are done)
     params: Params,
     limits: Limits,
+    /// refinement factor of the mesh and the time step (1: the model as written; see
+    /// [`compile_str_refined`])
+    refine: usize,
 }
 
 /// A joint after name resolution; becomes node kinematics once dofs are numbered.
@@ -628,7 +660,17 @@ impl Compiler<'_> {
             &joint_names,
             &joint_hinge,
         )?;
-        let solver = self.solver(spec)?;
+        let mut solver = self.solver(spec)?;
+        if self.refine > 1 {
+            // refined run: smaller steps on the base output grid
+            let r = self.refine as f64;
+            if solver.output_dt == 0.0 {
+                solver.output_dt = solver.dt;
+            }
+            solver.dt /= r;
+            solver.dt_min /= r;
+            solver.dt_max /= r;
+        }
         self.output_size(spec, &solver, &sensors)?;
 
         let name = match spec.model.as_ref().and_then(|m| m.get_ref().name.as_ref()) {
@@ -1160,7 +1202,9 @@ impl Compiler<'_> {
             }
             let n1 = self.lookup(node_names, &b.from, &format!("{f}.from"), "node")?;
             let n2 = self.lookup(node_names, &b.to, &format!("{f}.to"), "node")?;
-            let n = self.integer(&b.elements, &format!("{f}.elements"), 1)?;
+            let n = self
+                .integer(&b.elements, &format!("{f}.elements"), 1)?
+                .saturating_mul(self.refine);
             // before meshing allocates anything for this beam
             let total = elements.len() as f64 + n as f64;
             if total > self.limits.elements as f64 {
@@ -1222,8 +1266,14 @@ impl Compiler<'_> {
                 }
             };
             let mut nodes = vec![n1];
+            let r = self.refine;
             for (k, p) in points.into_iter().enumerate() {
-                let nn = format!("{name}:{}", k + 1);
+                // refined: the nodes of the base mesh keep their names
+                let nn = if (k + 1) % r == 0 {
+                    format!("{name}:{}", (k + 1) / r)
+                } else {
+                    format!("{name}:{}+{}/{r}", (k + 1) / r, (k + 1) % r)
+                };
                 if !node_names.push(nn.clone()) {
                     return Err(self.err(
                         b.name.span(),
@@ -1707,7 +1757,13 @@ impl Compiler<'_> {
                     let c = self.required(&s.component, span.clone(), &fc, &why)?;
                     let axis = self.axis_component(c, &fc, "a global axis")?;
                     SensorKind::BeamDisplacement {
-                        nodes: beams[b].nodes.clone(),
+                        // refined: the nodes of the base mesh (the same components)
+                        nodes: beams[b]
+                            .nodes
+                            .iter()
+                            .copied()
+                            .step_by(self.refine)
+                            .collect(),
                         axis,
                     }
                 }

@@ -10,7 +10,7 @@ pub mod limits;
 pub mod spec;
 mod types;
 
-pub use compile::{compile_str, load, parse_set};
+pub use compile::{compile_str, compile_str_refined, load, load_refined, parse_set};
 pub use error::ModelError;
 pub use limits::Limits;
 pub use types::*;

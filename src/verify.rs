@@ -1,0 +1,579 @@
+//! `sweep --verify K`: a measured discretisation error for a campaign.
+//!
+//! After the campaign, K of its variants (spread evenly over its index range, see
+//! [`select`]) run again with the discretisation refined by [`REFINE`]: every beam
+//! meshed with twice its elements and the time step halved (`dt`, `dt_min`, `dt_max`),
+//! on the same output grid and reading the same material points
+//! ([`crate::model::compile_str_refined`]). For every sensor component the change of its
+//! extremes (min and max over the run) is measured relative to the component's range
+//! over the base run ([`rel_diff`]); a change above the target (the campaign's
+//! accuracy target, [`DEFAULT_TARGET`] if it has none) is a warning naming the sensor
+//! and the variant.
+//!
+//! The refined runs are separate models run after the campaign: the campaign's own
+//! numbers are untouched (still bit-identical to running each variant alone).
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::ensemble::{Campaign, Outcome, SensorSummary, Stage};
+use crate::model::{self, Model};
+use crate::output::{VariantState, VerificationData, VerificationSensor};
+use crate::sensors;
+use crate::solver::dynamics::{self, DynamicsError};
+
+/// Refinement factor of the verification runs: 2× the elements, dt / 2.
+pub const REFINE: usize = 2;
+
+/// Target used when the campaign sets none (`--accuracy`, `[solver] accuracy`): 1 % of
+/// a sensor's range, the digits a user reads in a table.
+pub const DEFAULT_TARGET: f64 = 1e-2;
+
+/// Below this fraction of the largest magnitude among a sensor's components of the
+/// same unit, a component's range counts as "at rest": its difference is measured
+/// against this floor (a planar model's out-of-plane displacement moves by round-off
+/// only; its range must not turn round-off into a 100 % "error").
+pub const REST_FRACTION: f64 = 1e-6;
+
+/// The `k` variants to verify among `candidates` (global indices in campaign order):
+/// evenly spread, the first and the last included when `k` ≥ 2, the middle one when
+/// `k` = 1. Deterministic; an error unless 1 ≤ `k` ≤ `candidates.len()`.
+pub fn select(candidates: &[usize], k: usize) -> Result<Vec<usize>, String> {
+    let n = candidates.len();
+    check_count(k, n, &format!("there are {n} to choose from"))?;
+    if k == 1 {
+        return Ok(vec![candidates[(n - 1) / 2]]);
+    }
+    // spacing (n − 1)/(k − 1) ≥ 1: the rounded positions are distinct
+    Ok((0..k)
+        .map(|j| {
+            let pos = (j * (n - 1) + (k - 1) / 2) / (k - 1);
+            candidates[pos]
+        })
+        .collect())
+}
+
+/// The bound of `--verify K`: 1 ≤ K ≤ `n`, the variants it may choose from (`note`
+/// says which, e.g. "the campaign has 5 variants").
+pub fn check_count(k: usize, n: usize, note: &str) -> Result<(), String> {
+    if k == 0 || k > n {
+        return Err(format!(
+            "--verify {k}: need from 1 to {n} variants to verify ({note})"
+        ));
+    }
+    Ok(())
+}
+
+/// The relative change of each component's extremes from `base` to `refined`:
+/// max(|max_r − max_b|, |min_r − min_b|) / scale, where scale is the component's range
+/// over the base run (max_b − min_b), but at least [`REST_FRACTION`] × the largest
+/// magnitude of the sensor's components with the same unit (`units`), in both runs. 0
+/// where both runs are the same; infinite where a value is not finite.
+pub fn rel_diff(base: &SensorSummary, refined: &SensorSummary, units: &[&str]) -> Vec<f64> {
+    let nc = base.min.len();
+    let mag: Vec<f64> = (0..nc)
+        .map(|c| {
+            [base.min[c], base.max[c], refined.min[c], refined.max[c]]
+                .iter()
+                .fold(0.0f64, |a, x| a.max(x.abs()))
+        })
+        .collect();
+    (0..nc)
+        .map(|c| {
+            let vals = [base.min[c], base.max[c], refined.min[c], refined.max[c]];
+            if vals.iter().any(|x| !x.is_finite()) {
+                return f64::INFINITY;
+            }
+            let diff = (refined.max[c] - base.max[c])
+                .abs()
+                .max((refined.min[c] - base.min[c]).abs());
+            if diff == 0.0 {
+                return 0.0;
+            }
+            let same_unit = (0..nc)
+                .filter(|&o| units.get(o) == units.get(c))
+                .map(|o| mag[o])
+                .fold(0.0f64, f64::max);
+            let scale = (base.max[c] - base.min[c]).max(REST_FRACTION * same_unit);
+            if scale > 0.0 {
+                diff / scale
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// One verified (or not) variant.
+#[derive(Clone, Debug)]
+pub struct VariantCheck {
+    pub global_index: usize,
+    pub parameters: Vec<(String, f64)>,
+    /// the refined run completed and was compared
+    pub verified: bool,
+    /// "verified", or why not
+    pub status: String,
+    /// wall time of the refined run
+    pub wall_s: f64,
+    /// dt of the base and the refined run (NaN where not compiled)
+    pub dt: [f64; 2],
+    /// elements of the base and the refined mesh
+    pub elements: [usize; 2],
+    /// per sensor, per component (NaN where not verified)
+    pub rel_diff: Vec<Vec<f64>>,
+    /// extremes of the refined run (NaN where not verified)
+    pub refined: Vec<SensorSummary>,
+}
+
+/// What `--verify` measured.
+#[derive(Clone, Debug)]
+pub struct Verification {
+    pub target: f64,
+    /// "--accuracy", "[solver] accuracy" or "default"
+    pub target_source: String,
+    /// sensor names with their component names and units
+    pub sensors: Vec<(String, Vec<String>)>,
+    pub variants: Vec<VariantCheck>,
+    pub warnings: Vec<String>,
+    /// wall time of the whole verification (its runs in parallel)
+    pub wall_s: f64,
+}
+
+/// The target of a campaign and where it comes from.
+pub fn target(c: &Campaign, base: Option<&Model>) -> (f64, &'static str) {
+    match (c.accuracy, base.and_then(|m| m.solver.accuracy)) {
+        (Some(a), _) => (a, "--accuracy"),
+        (None, Some(a)) => (a, "[solver] accuracy"),
+        (None, None) => (DEFAULT_TARGET, "default"),
+    }
+}
+
+/// Run the refined variants `chosen` (global indices, each in `models`/`outcomes` at
+/// the same position as in `global_index`) on the caller's pool and compare them with
+/// the campaign's outcomes. `stop` ends the refined runs early (they are then reported
+/// "interrupted", not verified).
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    c: &Campaign,
+    models: &[Model],
+    global_index: &[usize],
+    outcomes: &[Outcome],
+    chosen: &[usize],
+    stop: &std::sync::atomic::AtomicBool,
+    stage: &Stage,
+) -> Verification {
+    let t0 = Instant::now();
+    let first = models.first();
+    let (target, source) = target(c, first);
+    let sensors: Vec<(String, Vec<String>)> = first
+        .map(|m| {
+            m.sensors
+                .iter()
+                .map(|s| {
+                    (
+                        s.name.clone(),
+                        sensors::components(&s.kind)
+                            .iter()
+                            .map(|x| x.to_string())
+                            .collect(),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let variants: Vec<VariantCheck> = chosen
+        .par_iter()
+        .map(|&gi| {
+            let pos = global_index.iter().position(|&g| g == gi);
+            check_one(c, pos.map(|p| (&models[p], &outcomes[p])), gi, stop, stage)
+        })
+        .collect();
+    let mut warnings = Vec::new();
+    for v in &variants {
+        if !v.verified {
+            if v.status != "interrupted" {
+                warnings.push(format!(
+                    "variant {} ({}): not verified: {}",
+                    v.global_index,
+                    describe(&v.parameters),
+                    v.status
+                ));
+            }
+            continue;
+        }
+        for ((name, comps), rel) in sensors.iter().zip(&v.rel_diff) {
+            let (c_worst, worst) = rel
+                .iter()
+                .copied()
+                .enumerate()
+                .fold((0, 0.0f64), |a, (i, x)| if x > a.1 { (i, x) } else { a });
+            if worst > target {
+                warnings.push(format!(
+                    "variant {} ({}): sensor `{name}`: its extremes changed by {} of the \
+                     range ({name}.{}) under refinement (dt {} → {}, {} → {} elements), above \
+                     the target {}: its figures are not converged to the target; reduce dt \
+                     or add elements",
+                    v.global_index,
+                    describe(&v.parameters),
+                    percent(worst),
+                    comps.get(c_worst).map_or("", String::as_str),
+                    v.dt[0],
+                    v.dt[1],
+                    v.elements[0],
+                    v.elements[1],
+                    percent(target)
+                ));
+            }
+        }
+    }
+    Verification {
+        target,
+        target_source: source.to_string(),
+        sensors,
+        variants,
+        warnings,
+        wall_s: t0.elapsed().as_secs_f64(),
+    }
+}
+
+fn check_one(
+    c: &Campaign,
+    base: Option<(&Model, &Outcome)>,
+    gi: usize,
+    stop: &std::sync::atomic::AtomicBool,
+    stage: &Stage,
+) -> VariantCheck {
+    let parameters = c.variants.get(gi).cloned().unwrap_or_default();
+    let mut out = VariantCheck {
+        global_index: gi,
+        parameters,
+        verified: false,
+        status: String::new(),
+        wall_s: 0.0,
+        dt: [f64::NAN; 2],
+        elements: [0; 2],
+        rel_diff: Vec::new(),
+        refined: Vec::new(),
+    };
+    let nan_like = |m: &Model| -> (Vec<Vec<f64>>, Vec<SensorSummary>) {
+        let s: Vec<SensorSummary> = m
+            .sensors
+            .iter()
+            .map(|s| {
+                let nc = sensors::components(&s.kind).len();
+                SensorSummary {
+                    min: vec![f64::NAN; nc],
+                    max: vec![f64::NAN; nc],
+                    last: vec![f64::NAN; nc],
+                }
+            })
+            .collect();
+        (s.iter().map(|x| x.min.clone()).collect(), s)
+    };
+    let Some((m, o)) = base else {
+        out.status = "not in this shard".into();
+        return out;
+    };
+    out.dt[0] = m.solver.dt;
+    out.elements[0] = m.elements.len();
+    (out.rel_diff, out.refined) = nan_like(m);
+    if o.state != VariantState::Completed {
+        out.status = format!("its campaign run did not complete ({})", o.state.label());
+        return out;
+    }
+    if stop.load(std::sync::atomic::Ordering::SeqCst) {
+        out.status = "interrupted".into();
+        return out;
+    }
+    let mut sets = c.base.clone();
+    sets.extend(out.parameters.iter().cloned());
+    let mut r = match model::load_refined(&c.model_path, &sets, REFINE) {
+        Ok(r) => r,
+        Err(e) => {
+            out.status = format!("the refined model does not compile: {e}");
+            return out;
+        }
+    };
+    if c.accuracy.is_some() {
+        r.solver.accuracy = c.accuracy;
+    }
+    out.dt[1] = r.solver.dt;
+    out.elements[1] = r.elements.len();
+    let layout = |m: &Model| -> Vec<(String, usize)> {
+        m.sensors
+            .iter()
+            .map(|s| (s.name.clone(), sensors::components(&s.kind).len()))
+            .collect()
+    };
+    if layout(&r) != layout(m) || dynamics::output_times(&r) != dynamics::output_times(m) {
+        out.status = "the refined model reports other sensors or output times".into();
+        return out;
+    }
+    let t0 = Instant::now();
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let sim = || dynamics::run_with(&r, Some(stop), None, |_, _| {});
+        match &stage.make {
+            Some(make) => crate::assembly::with_evaluator(make(), sim),
+            None => sim(),
+        }
+    }));
+    out.wall_s = t0.elapsed().as_secs_f64();
+    let (hist, _stats, err) = match result {
+        Ok(x) => x,
+        Err(_) => {
+            out.status = "the refined run panicked (a bug in latdyn; please report it)".into();
+            return out;
+        }
+    };
+    match err {
+        Some(DynamicsError::Interrupted { .. }) => {
+            out.status = "interrupted".into();
+            return out;
+        }
+        Some(e) => {
+            out.status = format!("the refined run failed: {e}");
+            return out;
+        }
+        None => {}
+    }
+    let refined = crate::ensemble::summarize(&r, &hist);
+    out.rel_diff = m
+        .sensors
+        .iter()
+        .zip(o.sensors.iter().zip(&refined))
+        .map(|(s, (b, x))| rel_diff(b, x, &sensors::units(&s.kind)))
+        .collect();
+    out.refined = refined;
+    out.verified = true;
+    out.status = "verified".into();
+    out
+}
+
+impl Verification {
+    /// Largest relative difference over the verified variants and sensors (NaN if none).
+    pub fn max_rel_diff(&self) -> f64 {
+        self.worst().map_or(f64::NAN, |(_, _, _, x)| x)
+    }
+
+    /// (variant position, sensor, component, value) of the largest difference.
+    pub fn worst(&self) -> Option<(usize, usize, usize, f64)> {
+        let mut best: Option<(usize, usize, usize, f64)> = None;
+        for (vi, v) in self.variants.iter().enumerate().filter(|(_, v)| v.verified) {
+            for (si, rel) in v.rel_diff.iter().enumerate() {
+                for (ci, &x) in rel.iter().enumerate() {
+                    if best.is_none_or(|b| x > b.3) {
+                        best = Some((vi, si, ci, x));
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// Per sensor: the largest difference over the verified variants, per component.
+    fn per_sensor(&self, s: usize) -> Vec<f64> {
+        let nc = self.sensors[s].1.len();
+        (0..nc)
+            .map(|c| {
+                self.variants
+                    .iter()
+                    .filter(|v| v.verified)
+                    .map(|v| v.rel_diff[s][c])
+                    .fold(f64::NAN, f64::max)
+            })
+            .collect()
+    }
+
+    /// One line for stderr.
+    pub fn summary(&self) -> String {
+        let n_ok = self.variants.iter().filter(|v| v.verified).count();
+        let idx: Vec<String> = self
+            .variants
+            .iter()
+            .map(|v| v.global_index.to_string())
+            .collect();
+        let target = format!("target {} ({})", percent(self.target), self.target_source);
+        let worst = match self.worst() {
+            Some((vi, si, ci, x)) => format!(
+                "largest change of a sensor extreme {} of its range ({}.{}, variant {}); {target}{}",
+                percent(x),
+                self.sensors[si].0,
+                self.sensors[si].1[ci],
+                self.variants[vi].global_index,
+                if x > self.target { ", EXCEEDED" } else { "" }
+            ),
+            None => format!("no variant verified; {target}"),
+        };
+        format!(
+            "verify: {n_ok} of {} variant(s) ({}) rerun with dt/{REFINE} and {REFINE}× elements \
+             in {:.2} s: {worst}",
+            self.variants.len(),
+            idx.join(", "),
+            self.wall_s
+        )
+    }
+
+    /// The `verification` object of `sweep --json`.
+    pub fn to_json(&self) -> serde_json::Value {
+        use serde_json::json;
+        let num = |x: f64| if x.is_nan() { json!(null) } else { json!(x) };
+        let per_sensor: serde_json::Map<String, serde_json::Value> = self
+            .sensors
+            .iter()
+            .enumerate()
+            .map(|(s, (name, comps))| {
+                let pc = self.per_sensor(s);
+                let worst = pc.iter().copied().fold(f64::NAN, f64::max);
+                let per_component: serde_json::Map<String, serde_json::Value> = comps
+                    .iter()
+                    .zip(&pc)
+                    .map(|(c, &x)| (c.clone(), num(x)))
+                    .collect();
+                (
+                    name.clone(),
+                    json!({"max_rel_diff": num(worst), "per_component": per_component}),
+                )
+            })
+            .collect();
+        let variants: Vec<serde_json::Value> = self
+            .variants
+            .iter()
+            .map(|v| {
+                let sensors: serde_json::Map<String, serde_json::Value> = self
+                    .sensors
+                    .iter()
+                    .zip(v.rel_diff.iter().zip(&v.refined))
+                    .map(|((name, _), (rel, r))| {
+                        let rel: Vec<serde_json::Value> = rel.iter().map(|&x| num(x)).collect();
+                        let mn: Vec<serde_json::Value> = r.min.iter().map(|&x| num(x)).collect();
+                        let mx: Vec<serde_json::Value> = r.max.iter().map(|&x| num(x)).collect();
+                        (
+                            name.clone(),
+                            json!({"rel_diff": rel, "refined_min": mn, "refined_max": mx}),
+                        )
+                    })
+                    .collect();
+                json!({
+                    "index": v.global_index,
+                    "status": v.status,
+                    "wall_s": v.wall_s,
+                    "dt": [num(v.dt[0]), num(v.dt[1])],
+                    "elements": v.elements,
+                    "sensors": sensors,
+                })
+            })
+            .collect();
+        json!({
+            "target": self.target,
+            "target_source": self.target_source,
+            "refinement": {"dt_divided_by": REFINE, "elements_times": REFINE},
+            "variants": self.variants.iter().map(|v| v.global_index).collect::<Vec<_>>(),
+            "max_rel_diff": num(self.max_rel_diff()),
+            "per_sensor": per_sensor,
+            "per_variant": variants,
+            "warnings": self.warnings,
+            "wall_s": self.wall_s,
+        })
+    }
+
+    /// The `/verification` group of the campaign file.
+    pub fn data(&self) -> VerificationData {
+        let sensors = self
+            .sensors
+            .iter()
+            .enumerate()
+            .map(|(s, (name, comps))| {
+                let nc = comps.len();
+                // [K, C]; NaN rows where a variant has no figures
+                let flat = |get: &dyn Fn(&VariantCheck) -> Option<&Vec<f64>>| -> Vec<f64> {
+                    self.variants
+                        .iter()
+                        .flat_map(|v| match get(v) {
+                            Some(x) if x.len() == nc => x.clone(),
+                            _ => vec![f64::NAN; nc],
+                        })
+                        .collect()
+                };
+                VerificationSensor {
+                    name: name.clone(),
+                    components: comps.clone(),
+                    rel_diff: flat(&|v| v.rel_diff.get(s)),
+                    refined_min: flat(&|v| v.refined.get(s).map(|x| &x.min)),
+                    refined_max: flat(&|v| v.refined.get(s).map(|x| &x.max)),
+                }
+            })
+            .collect();
+        VerificationData {
+            target: self.target,
+            target_source: self.target_source.clone(),
+            variants: self.variants.iter().map(|v| v.global_index).collect(),
+            status: self.variants.iter().map(|v| v.status.clone()).collect(),
+            wall_s: self.variants.iter().map(|v| v.wall_s).collect(),
+            dt: self.variants.iter().map(|v| v.dt).collect(),
+            elements: self.variants.iter().map(|v| v.elements).collect(),
+            max_rel_diff: self.max_rel_diff(),
+            warnings: self.warnings.clone(),
+            sensors,
+        }
+    }
+}
+
+fn describe(p: &[(String, f64)]) -> String {
+    if p.is_empty() {
+        return "no parameters varied".into();
+    }
+    p.iter()
+        .map(|(n, v)| format!("{n}={v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A fraction as a percentage (0.0123 → "1.23 %", 2.1e-5 → "2.10e-3 %").
+fn percent(x: f64) -> String {
+    let p = 100.0 * x;
+    if !p.is_finite() || p == 0.0 || p >= 0.1 {
+        format!("{p:.2} %")
+    } else {
+        format!("{p:.2e} %")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn select_spreads_evenly_with_first_and_last() {
+        let all: Vec<usize> = (0..10).collect();
+        assert_eq!(select(&all, 2).unwrap(), vec![0, 9]);
+        assert_eq!(select(&all, 3).unwrap(), vec![0, 5, 9]);
+        assert_eq!(select(&all, 1).unwrap(), vec![4]);
+        assert_eq!(select(&all, 10).unwrap(), all);
+        assert!(select(&all, 0).is_err());
+        assert!(select(&all, 11).is_err());
+        let shard: Vec<usize> = (0..10).step_by(3).collect(); // 0 3 6 9
+        assert_eq!(select(&shard, 2).unwrap(), vec![0, 9]);
+    }
+
+    #[test]
+    fn rel_diff_is_relative_to_the_range_and_ignores_round_off_at_rest() {
+        let s = |min: Vec<f64>, max: Vec<f64>| SensorSummary {
+            last: min.clone(),
+            min,
+            max,
+        };
+        // x moves over [−1, 1] (range 2); z stays at 1e-17 round-off against a 1 m scale
+        let b = s(vec![-1.0, 0.0], vec![1.0, 1e-17]);
+        let r = s(vec![-1.02, 0.0], vec![1.0, -1e-17]);
+        let d = rel_diff(&b, &r, &["m", "m"]);
+        assert!((d[0] - 0.01).abs() < 1e-12, "{d:?}");
+        assert!(d[1] < 1e-9, "{d:?}");
+        // identical runs: 0, also for a sensor that is 0 throughout
+        let z = s(vec![0.0], vec![0.0]);
+        assert_eq!(rel_diff(&z, &z, &["m"]), vec![0.0]);
+        // a refined run that blew up
+        let inf = s(vec![f64::NAN], vec![f64::NAN]);
+        assert_eq!(rel_diff(&z, &inf, &["m"]), vec![f64::INFINITY]);
+    }
+}
