@@ -993,6 +993,7 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             rejected_steps: stats.rejected_steps as u64,
             wall_s: wall,
             energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+            energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
             time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
             warnings: stats.warnings().join("\n"),
         };
@@ -1041,6 +1042,7 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "rejected_steps": stats.rejected_steps,
             "newton_iterations": stats.newton_iterations,
             "energy_growth": stats.energy_growth,
+            "energy_loss": stats.energy_loss,
             "time_error_estimate": stats.time_error_estimate,
             "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
             "warnings": warnings,
@@ -1260,23 +1262,43 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             (None, _) => String::new(),
         }
     );
+    // variants whose energy balance grew (probably unstable), then the others with
+    // warnings (numerical energy loss, notes): one summary line each
+    let grew = |o: &&latdyn::ensemble::Outcome| {
+        o.energy_growth
+            .is_some_and(|g| g > latdyn::solver::dynamics::RunStats::ENERGY_GROWTH_LIMIT)
+    };
     let flagged: Vec<usize> = outcomes
         .iter()
-        .filter(|o| !o.warnings.is_empty())
+        .filter(grew)
         .map(|o| o.global_index)
         .collect();
+    let other: Vec<usize> = outcomes
+        .iter()
+        .filter(|o| !o.warnings.is_empty() && !grew(o))
+        .map(|o| o.global_index)
+        .collect();
+    let list = |ix: &[usize]| {
+        let shown: Vec<String> = ix.iter().take(20).map(|i| i.to_string()).collect();
+        format!(
+            "{}{}",
+            shown.join(", "),
+            if ix.len() > shown.len() { ", …" } else { "" }
+        )
+    };
     if !flagged.is_empty() {
-        let shown: Vec<String> = flagged.iter().take(20).map(|i| i.to_string()).collect();
         eprintln!(
             "warning: {} variant(s) completed with an energy balance that grew (probably \
-             unstable; reduce dt or lower rho_inf): indices {}{}",
+             unstable; reduce dt or lower rho_inf): indices {}",
             flagged.len(),
-            shown.join(", "),
-            if flagged.len() > shown.len() {
-                ", …"
-            } else {
-                ""
-            }
+            list(&flagged)
+        );
+    }
+    if !other.is_empty() {
+        eprintln!(
+            "warning: {} variant(s) completed with warnings (see their `warnings`): indices {}",
+            other.len(),
+            list(&other)
         );
     }
     if args.model.json {
@@ -1322,6 +1344,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "rejected_steps": o.rejected_steps,
                     "wall_s": o.wall_s,
                     "energy_growth": o.energy_growth,
+                    "energy_loss": o.energy_loss,
                     "time_error_estimate": o.time_error_estimate,
                     "warnings": o.warnings,
                     "sensors": sensors,
