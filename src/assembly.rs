@@ -157,6 +157,12 @@ pub struct AssemblyInfo {
     pub kinetic_energy: f64,
     /// potential energy of gravity, −Σ m g·x over beams and bodies
     pub gravity_energy: f64,
+    /// power of the applied loads at this state, Σ s(t)(F·v + M·ω) over the nodes
+    /// (dynamics only: zero when inertia is not assembled)
+    pub load_power: f64,
+    /// power the dampers take out at this state: Rayleigh damping forces dotted with the
+    /// element velocities, plus Σ c θ̇² of the hinge dampers (dynamics only)
+    pub damping_power: f64,
 }
 
 impl Assembler {
@@ -374,7 +380,9 @@ impl Assembler {
                     if ra != 0.0 || rb != 0.0 {
                         for i in 0..NDOF {
                             let kv: f64 = (0..NDOF).map(|j| k[i][j] * v12[j]).sum();
-                            f[i] += ra * o.mv[i] + rb * kv;
+                            let fd = ra * o.mv[i] + rb * kv;
+                            f[i] += fd;
+                            info.damping_power += fd * v12[i];
                         }
                         if sink.is_some() {
                             for i in 0..NDOF {
@@ -465,6 +473,10 @@ impl Assembler {
             };
             let f = scale(l.force, -lf);
             let m = scale(l.moment, -lf);
+            if c.inertia {
+                let (vl, w) = ch.velocity(y, &s.v);
+                info.load_power -= dot(f, vl) + dot(m, w);
+            }
             track(&mut info, &f);
             track(&mut info, &m);
             ch.project(y, f, m, gen);
@@ -477,6 +489,9 @@ impl Assembler {
             let th = s.q[h.dof];
             let fh = h.stiffness * (th - h.angle_ref) + h.damping * s.v[h.dof];
             gen[h.dof] += fh;
+            if c.inertia {
+                info.damping_power += h.damping * s.v[h.dof] * s.v[h.dof];
+            }
             info.strain_energy += 0.5 * h.stiffness * (th - h.angle_ref).powi(2);
             if let (Some(sk), Some(e)) = (sink.as_deref_mut(), self.eq[h.dof]) {
                 if !s.locked[ih] {

@@ -364,9 +364,10 @@ pub struct Outcome {
     pub times: StageTimes,
     pub sensors: Vec<SensorSummary>,
     pub derived: Vec<(String, f64)>,
-    /// growth of the energy balance (see `RunStats::energy_growth`; None where it is not
-    /// defined, e.g. models with applied loads)
+    /// growth of the energy balance (see `RunStats::energy_growth`; None where not run)
     pub energy_growth: Option<f64>,
+    /// numerical loss of the energy balance (see `RunStats::energy_loss`)
+    pub energy_loss: Option<f64>,
     /// estimated relative time-discretisation error (see `RunStats::time_error_estimate`)
     pub time_error_estimate: Option<f64>,
     /// warnings about the variant's numbers, each naming its likely cause (energy
@@ -749,6 +750,7 @@ pub fn run_verified_to(
                         rejected_steps: stats.rejected_steps as u64,
                         wall_s: wall,
                         energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+                        energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
                         time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
                         warnings: warnings.join("\n"),
                     };
@@ -789,6 +791,7 @@ pub fn run_verified_to(
                     sensors: summaries,
                     derived,
                     energy_growth: stats.energy_growth,
+                    energy_loss: stats.energy_loss,
                     time_error_estimate: stats.time_error_estimate,
                     warnings,
                     history: keep_history.then_some(hist),
@@ -852,6 +855,7 @@ fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool) -> Outcome 
         sensors: summarize(m, &dynamics::History::default()),
         derived: Vec::new(),
         energy_growth: None,
+        energy_loss: None,
         time_error_estimate: None,
         warnings: Vec::new(),
         history: keep_history.then(|| dynamics::History {

@@ -999,6 +999,7 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             rejected_steps: stats.rejected_steps as u64,
             wall_s: wall,
             energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+            energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
             time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
             warnings: stats.warnings().join("\n"),
         };
@@ -1047,6 +1048,7 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "rejected_steps": stats.rejected_steps,
             "newton_iterations": stats.newton_iterations,
             "energy_growth": stats.energy_growth,
+            "energy_loss": stats.energy_loss,
             "time_error_estimate": stats.time_error_estimate,
             "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
             "warnings": warnings,
@@ -1369,6 +1371,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "rejected_steps": o.rejected_steps,
                     "wall_s": o.wall_s,
                     "energy_growth": o.energy_growth,
+                    "energy_loss": o.energy_loss,
                     "time_error_estimate": o.time_error_estimate,
                     "warnings": o.warnings,
                     "sensors": sensors,

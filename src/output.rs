@@ -32,7 +32,10 @@
 //! /status/wall_s           float64 [V] (NaN until set)
 //! /status/energy_growth    float64 [V]: growth of the energy balance (see
 //!                          `RunStats::energy_growth`; > 1e-3 means probably unstable),
-//!                          NaN where not defined (applied loads) or not yet run
+//!                          NaN where not yet run
+//! /status/energy_loss      float64 [V]: numerical loss of the energy balance (see
+//!                          `RunStats::energy_loss`; above `ENERGY_LOSS_LIMIT` the step
+//!                          is too large), NaN where not yet run
 //! /status/time_error_estimate float64 [V]: estimated time-discretisation error of the
 //!                          sensors relative to their range, largest over the sensors
 //!                          (README "Accuracy"), NaN where not run
@@ -165,6 +168,8 @@ pub struct VariantStatus {
     pub wall_s: f64,
     /// growth of the energy balance, NaN where not defined
     pub energy_growth: f64,
+    /// loss of the energy balance, NaN where not defined
+    pub energy_loss: f64,
     /// estimated relative time-discretisation error, NaN where not run
     pub time_error_estimate: f64,
     /// warnings about the variant's numbers, one per line
@@ -182,6 +187,7 @@ impl Default for VariantStatus {
             rejected_steps: 0,
             wall_s: f64::NAN,
             energy_growth: f64::NAN,
+            energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
             warnings: String::new(),
         }
@@ -1053,6 +1059,8 @@ impl CampaignWriter {
         write_f64(&st, "wall_s", &[nv], &col(|s| s.wall_s)).map_err(h5("/status/wall_s"))?;
         write_f64(&st, "energy_growth", &[nv], &col(|s| s.energy_growth))
             .map_err(h5("/status/energy_growth"))?;
+        write_f64(&st, "energy_loss", &[nv], &col(|s| s.energy_loss))
+            .map_err(h5("/status/energy_loss"))?;
         write_f64(
             &st,
             "time_error_estimate",

@@ -18,7 +18,16 @@ pub fn components(kind: &SensorKind) -> Vec<&'static str> {
         SensorKind::HingeAngle { .. } => vec!["angle", "rate"],
         SensorKind::NodeDirection { .. } => vec!["u"],
         SensorKind::BodyFrameDisplacement { axis, .. } => vec![["x", "y", "z"][*axis]],
-        SensorKind::Energy => vec!["kinetic", "strain", "gravity", "driver_work", "total"],
+        SensorKind::Energy => vec![
+            "kinetic",
+            "strain",
+            "gravity",
+            "driver_work",
+            "total",
+            "load_work",
+            "dissipated",
+            "balance",
+        ],
         SensorKind::DriverForce { .. } => vec!["force"],
         SensorKind::BeamDisplacement { nodes, .. } => node_component_names(nodes.len()),
     }
@@ -52,7 +61,7 @@ pub fn units(kind: &SensorKind) -> Vec<&'static str> {
         }
         SensorKind::HingeAngle { .. } => vec!["rad", "rad/s"],
         SensorKind::NodeDirection { .. } | SensorKind::BodyFrameDisplacement { .. } => vec!["m"],
-        SensorKind::Energy => vec!["J"; 5],
+        SensorKind::Energy => vec!["J"; 8],
         SensorKind::DriverForce { rotational, .. } => {
             vec![if *rotational { "N*m" } else { "N" }]
         }
@@ -60,14 +69,29 @@ pub fn units(kind: &SensorKind) -> Vec<&'static str> {
     }
 }
 
-/// Energies that the caller tracks over a run (kinetic and strain from the last
-/// assembly, driver work integrated by the integrator).
+/// Energies that the caller tracks over a run (kinetic, strain — hinge springs included —
+/// and gravity from the last assembly; the works and the dissipation integrated by the
+/// integrator, trapezoid rule per step on the powers at the step ends).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Energies {
     pub kinetic: f64,
     pub strain: f64,
     pub gravity: f64,
+    /// work the drivers supplied (reaction × rate of the driven dofs)
     pub driver_work: f64,
+    /// work of the applied loads, time scales included
+    pub load_work: f64,
+    /// energy taken out by Rayleigh damping and hinge dampers
+    pub dissipated: f64,
+}
+
+impl Energies {
+    /// Kinetic + strain + gravity − driver work − load work + dissipated: constant in
+    /// exact dynamics; what time integration adds to it or takes from it is its error.
+    pub fn balance(&self) -> f64 {
+        self.kinetic + self.strain + self.gravity - self.driver_work - self.load_work
+            + self.dissipated
+    }
 }
 
 /// Values of one sensor at state `s`. `driver_forces` (by dof) holds the generalized
@@ -125,8 +149,12 @@ pub fn sample(
             energies.strain,
             energies.gravity,
             energies.driver_work,
-            // conserved without damping: mechanical energy minus the work put in
+            // conserved without damping and loads: mechanical energy minus driver work
             energies.kinetic + energies.strain + energies.gravity - energies.driver_work,
+            energies.load_work,
+            energies.dissipated,
+            // conserved in any model: the total minus load work plus dissipation
+            energies.balance(),
         ],
         SensorKind::DriverForce { dof, .. } => vec![driver_forces[*dof]],
         SensorKind::BeamDisplacement { nodes, axis } => {

@@ -32,7 +32,12 @@ fn warnings(v: &Value) -> Vec<String> {
 /// times, over the reference's range (the same measure the estimate reports).
 fn history_error(run: &Value, reference: &Value, sensor: &str) -> f64 {
     let (a, b) = (&run["sensors"][sensor], &reference["sensors"][sensor]);
-    let tb: Vec<f64> = b["t"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let tb: Vec<f64> = b["t"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
     let vb = b["values"].as_array().unwrap();
     let nc = vb[0].as_array().unwrap().len();
     let mut worst = 0.0f64;
@@ -43,7 +48,12 @@ fn history_error(run: &Value, reference: &Value, sensor: &str) -> f64 {
         if range <= 0.0 {
             continue;
         }
-        for (t, v) in a["t"].as_array().unwrap().iter().zip(a["values"].as_array().unwrap()) {
+        for (t, v) in a["t"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(a["values"].as_array().unwrap())
+        {
             let t = t.as_f64().unwrap();
             let i = tb.partition_point(|x| *x < t - 1e-9);
             if i < tb.len() && (tb[i] - t).abs() < 1e-7 {
@@ -58,9 +68,21 @@ fn history_error(run: &Value, reference: &Value, sensor: &str) -> f64 {
 fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
     // each of these is 7 % to 17× off the converged answer (issue 14); each must say so
     for (model, sets, sensor) in [
-        ("models/spinup_beam.toml", vec!["dt=0.05", "t_end=16"], "tip_deflection"),
-        ("models/rotating_cantilever.toml", vec!["dt=0.1"], "root_moment"),
-        ("models/rotating_cantilever.toml", vec!["omega=20", "t_end=3"], "root_moment"),
+        (
+            "models/spinup_beam.toml",
+            vec!["dt=0.05", "t_end=16"],
+            "tip_deflection",
+        ),
+        (
+            "models/rotating_cantilever.toml",
+            vec!["dt=0.1"],
+            "root_moment",
+        ),
+        (
+            "models/rotating_cantilever.toml",
+            vec!["omega=20", "t_end=3"],
+            "root_moment",
+        ),
         ("models/flapping_blade.toml", vec!["dt=0.05"], "mid_moment"),
     ] {
         let mut args = vec![model];
@@ -128,7 +150,10 @@ fn accuracy_target_is_met_from_a_step_twenty_times_too_large() {
         ]);
         let target: f64 = acc.parse().unwrap();
         let truth = history_error(&v, &reference, "angle");
-        assert!(truth < 3.0 * target, "accuracy {acc}: true error {truth:.3e}");
+        assert!(
+            truth < 3.0 * target,
+            "accuracy {acc}: true error {truth:.3e}"
+        );
         assert!(
             v["time_error_estimate"].as_f64().unwrap() <= 1.5 * target,
             "{v}"

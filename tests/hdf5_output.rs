@@ -99,6 +99,7 @@ fn write_campaign(path: &Path) {
             rejected_steps: 3,
             wall_s: 0.5,
             energy_growth: 2e-7,
+            energy_loss: 4e-4,
             time_error_estimate: 3e-4,
             warnings: String::new(),
         },
@@ -115,6 +116,7 @@ fn write_campaign(path: &Path) {
             rejected_steps: 7,
             wall_s: 0.25,
             energy_growth: f64::NAN,
+            energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
             warnings: "first line\nsecond line".into(),
         },
@@ -198,6 +200,8 @@ fn campaign_round_trip_rust() {
     assert_eq!(st("wall_s").read_raw::<f64>().unwrap(), [0.5, 0.25]);
     let eg = st("energy_growth").read_raw::<f64>().unwrap();
     assert!(eg[0] == 2e-7 && eg[1].is_nan(), "{eg:?}");
+    let el = st("energy_loss").read_raw::<f64>().unwrap();
+    assert!(el[0] == 4e-4 && el[1].is_nan(), "{el:?}");
     let te = st("time_error_estimate").read_raw::<f64>().unwrap();
     assert!(te[0] == 3e-4 && te[1].is_nan(), "{te:?}");
     assert_eq!(

@@ -35,8 +35,7 @@ pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsEr
     let en = Energies {
         kinetic: 0.0,
         strain,
-        gravity: 0.0,
-        driver_work: 0.0,
+        ..Energies::default()
     };
     // generalized forces at equilibrium: at driven dofs, what the drivers supply
     let mut gen = vec![0.0; model.dofs.len()];
