@@ -165,7 +165,8 @@ fn accuracy_target_is_met_from_a_step_twenty_times_too_large() {
 #[test]
 fn accuracy_out_of_range_is_a_usage_error() {
     for bad in ["0", "-1", "0.5", "nan", "x"] {
-        let out = latdyn(&["run", "models/pendulum.toml", "--accuracy", bad]);
+        let arg = format!("--accuracy={bad}");
+        let out = latdyn(&["run", "models/pendulum.toml", &arg]);
         assert_eq!(out.status.code(), Some(2), "--accuracy {bad}");
         assert!(String::from_utf8_lossy(&out.stderr).contains("--accuracy"));
     }
