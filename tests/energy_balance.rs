@@ -65,7 +65,8 @@ fn numerical_loss_is_flagged_on_the_spinup_beam_at_ten_times_its_step() {
     assert!(bad.energy_loss.unwrap() > 0.03, "{:?}", bad.energy_loss);
     let w = bad.warnings();
     assert!(
-        w.len() == 1 && w[0].contains("numerical dissipation") && w[0].contains("reduce dt"),
+        w.iter()
+            .any(|w| w.contains("numerical dissipation") && w.contains("reduce dt")),
         "{w:?}"
     );
 }
@@ -268,7 +269,7 @@ rho_inf = 0.9
 }
 
 #[test]
-fn shipped_scenes_run_without_warnings_at_their_shipped_settings() {
+fn shipped_scenes_run_without_energy_warnings_at_their_shipped_settings() {
     // Measured energy loss (growth is 0 or below 6e-6 in all): bend45 2.7e-4, cantilever
     // 0, flapping_blade 7.5e-4, fourbar 8.7e-4, minimast_bay 2.7e-3, pendulum 2.3e-7,
     // rotating_cantilever 5.7e-4, spinup_beam 4.4e-4; ENERGY_LOSS_LIMIT is 1e-2.
@@ -289,11 +290,12 @@ fn shipped_scenes_run_without_warnings_at_their_shipped_settings() {
             st.energy_growth,
             st.energy_loss
         );
+        // the time-error warnings of some shipped scenes are tested in tests/accuracy.rs
         assert!(
-            st.warnings().is_empty(),
+            st.energy_warning().is_none(),
             "{}: {:?}",
             p.display(),
-            st.warnings()
+            st.energy_warning()
         );
     }
 }

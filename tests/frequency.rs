@@ -25,11 +25,14 @@ fn sweep(args: &[&str]) -> (Vec<Row>, String) {
         .map(|x| {
             let d = &x["derived"];
             let hz = |k: &str| 2.0 * PI * d[k].as_f64().unwrap_or(f64::NAN);
+            // the frequency warnings only: the blade's mid-span moment also carries a
+            // time-error warning at the shipped step (README "Accuracy")
             let w = x["warnings"]
                 .as_array()
                 .unwrap()
                 .iter()
                 .map(|s| s.as_str().unwrap().to_string())
+                .filter(|s| s.starts_with("first_bending_hz"))
                 .collect();
             (
                 x["parameters"]["omega"].as_f64().unwrap(),

@@ -413,7 +413,7 @@ fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5
     );
 }
 
-/// A 512 KiB tmpfs fills up mid-campaign: the sweep stops, the file on it is the last
+/// A 1 MiB tmpfs fills up mid-campaign: the sweep stops, the file on it is the last
 /// flush that fitted (valid, readable by h5py), no temporary file is left, exit 5.
 #[test]
 fn full_disk_mid_sweep_keeps_the_last_valid_flush_and_exits_5() {
@@ -421,7 +421,7 @@ fn full_disk_mid_sweep_keeps_the_last_valid_flush_and_exits_5() {
     let mnt = dir.join("mnt");
     std::fs::create_dir_all(&mnt).unwrap();
     let mounted = Command::new("mount")
-        .args(["-t", "tmpfs", "-o", "size=512k", "tmpfs", s(&mnt)])
+        .args(["-t", "tmpfs", "-o", "size=1m", "tmpfs", s(&mnt)])
         .stderr(Stdio::null())
         .status()
         .map(|st| st.success())
