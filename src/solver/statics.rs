@@ -129,6 +129,9 @@ fn coord_scale(model: &Model) -> f64 {
 /// converging, none growing) instead of letting it run for 1e7 steps.
 pub const MAX_LOAD_STEPS: usize = 10_000;
 
+/// Load steps over which the progress of λ is measured for the creep test.
+const CREEP_WINDOW: usize = 1000;
+
 /// Solve for static equilibrium under the full loads, starting from `s`.
 pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError> {
     let asm = Assembler::new(model);
@@ -145,9 +148,20 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
     if loads_vanish(model, &asm, s) {
         dl = 1.0;
     }
+    // a solve creeping at a rate that cannot reach λ = 1 within MAX_LOAD_STEPS is a
+    // stall now, not after the whole budget (a fuzzer input took 21 s to reach the cap)
+    let mut window = (0usize, lambda);
     while lambda < 1.0 {
-        if rep.load_steps + rep.rejected_steps >= MAX_LOAD_STEPS {
+        let used = rep.load_steps + rep.rejected_steps;
+        if used >= MAX_LOAD_STEPS {
             return Err(stall(model, &asm, &mut sys, s, lambda, &rep));
+        }
+        if used >= window.0 + CREEP_WINDOW {
+            let rate = (lambda - window.1) / (used - window.0) as f64;
+            if rate * ((MAX_LOAD_STEPS - used) as f64) < 1.0 - lambda {
+                return Err(stall(model, &asm, &mut sys, s, lambda, &rep));
+            }
+            window = (used, lambda);
         }
         let target = (lambda + dl).min(1.0);
         let saved = s.clone();
