@@ -122,8 +122,6 @@ struct TimeError {
     /// the coordinate error vector (by equation) and the state moved by it
     e: Vec<f64>,
     moved: State,
-    /// controller: the last accepted normalised error
-    prev_err: f64,
     carrier: Option<Carrier>,
     /// per sensor, per component: smallest range the controller divides by (from a
     /// fixed-step probe run; zero without one)
@@ -171,7 +169,6 @@ impl TimeError {
                 .collect(),
             e: vec![0.0; n_eq],
             moved: s.clone(),
-            prev_err: 1.0,
             carrier: Carrier::find(model),
             floor: comps.iter().map(|&c| vec![0.0; c]).collect(),
             da: vec![0.0; model.dofs.len()],
@@ -1051,7 +1048,6 @@ impl<'m> Integrator<'m> {
     /// pendulum: steps stuck 100× too small).
     fn next_step(&mut self, h: f64, err: f64) -> f64 {
         let fac = (SAFETY * err.max(1e-6).powf(-0.5)).clamp(0.2, 2.0);
-        self.te.prev_err = err;
         // a step cut short by the output grid says nothing against the step before it
         let base = if h < self.h && fac >= 1.0 { self.h } else { h };
         (base * fac)
