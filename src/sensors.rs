@@ -104,37 +104,55 @@ pub fn sample(
     energies: &Energies,
     driver_forces: &[f64],
 ) -> Vec<f64> {
+    let mut out = Vec::new();
+    sample_into(model, asm, s, kind, energies, driver_forces, &mut out);
+    out
+}
+
+/// [`sample`] into a buffer the caller keeps (the time-error estimate samples every sensor
+/// twice per step; a fresh vector each time was an allocation on the step's hot path).
+pub fn sample_into(
+    model: &Model,
+    asm: &Assembler,
+    s: &State,
+    kind: &SensorKind,
+    energies: &Energies,
+    driver_forces: &[f64],
+    out: &mut Vec<f64>,
+) {
     let elem_state = |e: usize| joint::elem_state(model, s, e);
+    out.clear();
     match kind {
         SensorKind::NodeDisplacement { node } => {
             let u = s.node_u[*node];
             let r = rot_log(&s.node_r[*node]);
-            vec![u[0], u[1], u[2], r[0], r[1], r[2]]
+            out.extend_from_slice(&[u[0], u[1], u[2], r[0], r[1], r[2]]);
         }
-        SensorKind::NodePosition { node } => joint::node_position(model, s, *node).to_vec(),
-        SensorKind::Section { element, xi } => {
-            element::section_forces(&asm.elems[*element], &elem_state(*element), *xi).to_vec()
+        SensorKind::NodePosition { node } => {
+            out.extend_from_slice(&joint::node_position(model, s, *node))
         }
+        SensorKind::Section { element, xi } => out.extend_from_slice(&element::section_forces(
+            &asm.elems[*element],
+            &elem_state(*element),
+            *xi,
+        )),
         SensorKind::SectionComponent {
             element,
             xi,
             component,
-        } => {
-            vec![
-                element::section_forces(&asm.elems[*element], &elem_state(*element), *xi)
-                    [*component],
-            ]
-        }
+        } => out.push(
+            element::section_forces(&asm.elems[*element], &elem_state(*element), *xi)[*component],
+        ),
         SensorKind::HingeAngle { hinge } => {
             let d = model.hinges[*hinge].dof;
-            vec![s.q[d], s.v[d]]
+            out.extend_from_slice(&[s.q[d], s.v[d]])
         }
         SensorKind::BodyPose { body } => {
             let x = s.body_x[*body];
             let r = rot_log(&s.body_r[*body]);
-            vec![x[0], x[1], x[2], r[0], r[1], r[2]]
+            out.extend_from_slice(&[x[0], x[1], x[2], r[0], r[1], r[2]])
         }
-        SensorKind::NodeDirection { node, dir } => vec![dot(s.node_u[*node], *dir)],
+        SensorKind::NodeDirection { node, dir } => out.push(dot(s.node_u[*node], *dir)),
         SensorKind::BodyFrameDisplacement { node, body, axis } => {
             let b = &model.bodies[*body];
             let now = mat_t_vec(
@@ -142,9 +160,9 @@ pub fn sample(
                 sub(joint::node_position(model, s, *node), s.body_x[*body]),
             );
             let then = mat_t_vec(&b.r0, sub(model.x0[*node], b.x0));
-            vec![now[*axis] - then[*axis]]
+            out.push(now[*axis] - then[*axis])
         }
-        SensorKind::Energy => vec![
+        SensorKind::Energy => out.extend_from_slice(&[
             energies.kinetic,
             energies.strain,
             energies.gravity,
@@ -155,10 +173,10 @@ pub fn sample(
             energies.dissipated,
             // conserved in any model: the total minus load work plus dissipation
             energies.balance(),
-        ],
-        SensorKind::DriverForce { dof, .. } => vec![driver_forces[*dof]],
+        ]),
+        SensorKind::DriverForce { dof, .. } => out.push(driver_forces[*dof]),
         SensorKind::BeamDisplacement { nodes, axis } => {
-            nodes.iter().map(|&n| s.node_u[n][*axis]).collect()
+            out.extend(nodes.iter().map(|&n| s.node_u[n][*axis]))
         }
     }
 }

@@ -132,6 +132,15 @@ struct TimeError {
     /// residual evaluation
     r0: Vec<f64>,
     gen0: Vec<f64>,
+    /// a sensor's values at the moved state (scratch)
+    ym: Vec<f64>,
+}
+
+/// Whether a component's range is large enough to divide by: below 1e-12 of the largest
+/// range of its sensor the component is round-off noise (one rule for the controller's
+/// per-step test and the reported estimate).
+fn significant_range(range: f64, sensor_range: f64) -> bool {
+    range.is_finite() && range > 0.0 && range > 1e-12 * sensor_range
 }
 
 impl TimeError {
@@ -169,6 +178,7 @@ impl TimeError {
                 .collect(),
             e: vec![0.0; n_eq],
             moved: s.clone(),
+            ym: Vec::new(),
             carrier: Carrier::find(model),
             floor: comps.iter().map(|&c| vec![0.0; c]).collect(),
             da: vec![0.0; model.dofs.len()],
@@ -184,7 +194,7 @@ impl TimeError {
         let sensor_range = (0..self.hi[k].len())
             .map(|j| self.hi[k][j] - self.lo[k][j])
             .fold(0.0f64, f64::max);
-        if range.is_finite() && range > 1e-12 * sensor_range && range > 0.0 {
+        if significant_range(range, sensor_range) {
             range
         } else {
             f64::INFINITY
@@ -548,63 +558,62 @@ impl<'m> Integrator<'m> {
         self.te.moved.clone_from(&self.trial);
         joint::apply_increment(model, &mut self.te.moved, &self.te.e);
         joint::update_kinematics(model, &mut self.te.moved);
-        ys.clear();
-        dys.clear();
+        // The buffers keep their inner vectors from step to step: no allocation per step.
+        ys.resize_with(model.sensors.len(), Vec::new);
+        dys.resize_with(model.sensors.len(), Vec::new);
         let mut worst = 0.0f64;
         for (k, sn) in model.sensors.iter().enumerate() {
+            let (y, dy) = (&mut ys[k], &mut dys[k]);
+            y.clear();
+            dy.clear();
             if !self.te.estimable[k] {
-                ys.push(Vec::new());
-                dys.push(Vec::new());
                 continue;
             }
-            let y = sensors::sample(
+            sensors::sample_into(
                 model,
                 &self.asm,
                 &self.trial,
                 &sn.kind,
                 &self.energies,
                 &self.sys.gen,
+                y,
             );
-            let ym = sensors::sample(
+            let ym = &mut self.te.ym;
+            sensors::sample_into(
                 model,
                 &self.asm,
                 &self.te.moved,
                 &sn.kind,
                 &self.energies,
                 &self.sys.gen,
+                ym,
             );
-            let dy: Vec<f64> = y
-                .iter()
-                .zip(&ym)
-                .zip(&self.te.angle[k])
-                .map(|((a, b), ang)| {
-                    let d = b - a;
-                    if *ang {
-                        // a rotation vector's angle jumps by 2π at π
-                        (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                            - std::f64::consts::PI
-                    } else {
-                        d
-                    }
-                    .abs()
-                })
-                .collect();
-            for (c, (v, d)) in y.iter().zip(&dy).enumerate() {
-                let lo = self.te.lo[k][c].min(*v);
-                let hi = self.te.hi[k][c].max(*v);
-                let range = (hi - lo).max(self.te.floor[k][c]);
-                let sensor_range = (0..y.len())
-                    .map(|j| {
-                        (self.te.hi[k][j].max(y[j]) - self.te.lo[k][j].min(y[j]))
-                            .max(self.te.floor[k][j])
-                    })
-                    .fold(0.0f64, f64::max);
-                if range > 1e-12 * sensor_range && range > 0.0 && d.is_finite() {
+            dy.extend(
+                y.iter()
+                    .zip(ym.iter())
+                    .zip(&self.te.angle[k])
+                    .map(|((a, b), ang)| {
+                        let d = b - a;
+                        if *ang {
+                            // a rotation vector's angle jumps by 2π at π
+                            (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                                - std::f64::consts::PI
+                        } else {
+                            d
+                        }
+                        .abs()
+                    }),
+            );
+            let (lo, hi, floor) = (&self.te.lo[k], &self.te.hi[k], &self.te.floor[k]);
+            let sensor_range = (0..y.len())
+                .map(|j| (hi[j].max(y[j]) - lo[j].min(y[j])).max(floor[j]))
+                .fold(0.0f64, f64::max);
+            for (c, (v, d)) in y.iter().zip(dy.iter()).enumerate() {
+                let range = (hi[c].max(*v) - lo[c].min(*v)).max(floor[c]);
+                if significant_range(range, sensor_range) && d.is_finite() {
                     worst = worst.max(d / range);
                 }
             }
-            ys.push(y);
-            dys.push(dy);
         }
         match model.solver.accuracy {
             Some(tol) => worst / (tol * h / model.solver.t_end),
