@@ -1814,8 +1814,9 @@ fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
         );
         for lp in &r.limit_points {
             s += &format!(
-                "  limit point ({}) at λ = {:.6e} (point {})\n",
-                lp.kind, lp.lambda, lp.index
+                "  limit point ({}) at λ = {:.6e} (point {}; parabola through its neighbours: \
+                 {:.6e})\n",
+                lp.kind, lp.lambda, lp.index, lp.lambda_fit
             );
         }
         for b in &r.bifurcations {

@@ -109,6 +109,9 @@ pub struct LimitPoint {
     pub lambda: f64,
     /// "max" (μ stops rising) or "min" (μ stops falling)
     pub kind: &'static str,
+    /// the extremum of the parabola λ(s) through this point and its two neighbours on
+    /// the path (s = arc length): the fold located between the path points
+    pub lambda_fit: f64,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -314,6 +317,20 @@ pub fn follow(model: &Model, opts: &PathOptions) -> PathResult {
         res.stopped_by = "error";
         res.error = Some(e);
     }
+    for lp in &mut res.limit_points {
+        let i = lp.index;
+        if i >= 1 && i + 1 < res.lambda.len() {
+            let (s, l) = (&res.arc[i - 1..=i + 1], &res.lambda[i - 1..=i + 1]);
+            if let Some(v) = parabola_extremum(s, l) {
+                lp.lambda_fit = v;
+            }
+        }
+    }
+    // the fold lies between two path points, so the determinant's sign changes within a
+    // point of it: that is the limit point itself, not a bifurcation
+    let folds: Vec<usize> = res.limit_points.iter().map(|l| l.index).collect();
+    res.bifurcations
+        .retain(|b| !folds.iter().any(|&f| b.index + 1 >= f && b.index <= f + 1));
     res.state = s;
     res
 }
@@ -387,29 +404,73 @@ fn follow_into(
     let mut prev_sign = det_sign(&mut cx, s, mu);
     res.det_sign.push(prev_sign);
 
-    // first tangent and the scaling ψ
+    // The first step is natural-parameter continuation: plain Newton at μ = first_step
+    // from the tangent prediction. Its secant fixes the scaling ψ (|Δu|/Δμ) and the first
+    // arc length. The tangent at μ = 0 would not do: a drive that starts smoothly (zero
+    // rate at t = 0, as the Mini-Mast stroke) has du/dμ = 0 there.
     let g = cx.dr_dmu(s, mu, h_fd);
     let mut ut: Vec<f64> = g.iter().map(|x| -x).collect();
     cx.sys.solve_tangent(&mut ut)?;
-    let ut2 = dot(&ut, &ut);
-    if !ut2.is_finite() {
+    if !dot(&ut, &ut).is_finite() {
         return Err(mechanism(model, s, cx.load_factor(mu), what, mu)?);
     }
-    let psi2 = if ut2 > 0.0 { ut2 } else { 1.0 };
-    let dmu0 = opts.first_step;
-    let ds0 = dmu0 * (ut2 + psi2).sqrt();
+    let start = s.clone();
+    let mut dmu0 = opts.first_step.min(opts.max_param);
+    let mut halvings = 0;
+    loop {
+        let mut pred: Vec<f64> = ut.iter().map(|x| x * dmu0).collect();
+        cx.asm.limit_rotation_step(&mut pred, MAX_NEWTON_ANGLE);
+        joint::apply_increment(model, s, &pred);
+        if let Some(it) = cx.newton_fixed(s, dmu0)? {
+            res.newton_iterations += it;
+            break;
+        }
+        s.clone_from(&start);
+        res.rejected_steps += 1;
+        dmu0 *= 0.5;
+        halvings += 1;
+        if halvings > MAX_HALVINGS {
+            cx.place(s, 0.0);
+            let _ = cx.eval(s, 0.0, false);
+            let (dof, residual) = statics::worst_dof(model, &cx.sys.r);
+            return Err(PathError::Stalled {
+                what,
+                mu: 0.0,
+                ds: dmu0,
+                points: 1,
+                iterations: res.newton_iterations,
+                residual,
+                dof,
+            });
+        }
+    }
+    let du0 = state_diff(model, &start, s);
+    let du2 = dot(&du0, &du0);
+    let psi2 = if du2 > 0.0 { du2 / (dmu0 * dmu0) } else { 1.0 };
+    let ds0 = (du2 + psi2 * dmu0 * dmu0).sqrt();
+    mu = dmu0;
+    let mut arc = ds0;
+    push(&mut cx, s, res, mu, 0, arc);
+    let sg = det_sign(&mut cx, s, mu);
+    res.det_sign.push(sg);
+    if sg != 0 {
+        prev_sign = sg;
+    }
     let mut ds = ds0;
     let ds_max = opts.max_growth * ds0;
     let ds_min = ds0 * 0.5f64.powi(MAX_HALVINGS);
-    let mut arc = 0.0;
     // previous accepted increment (Δu, Δμ), for the predictor's sign and the root choice
-    let mut prev_du: Vec<f64> = ut.clone();
-    let mut prev_dmu = 1.0;
+    let mut prev_du: Vec<f64> = du0;
+    let mut prev_dmu = dmu0;
     let mut prev_dir = 1.0f64;
     let mut until_prev = opts
         .until
         .as_ref()
         .map(|u| res.sensors[0][u.sensor][u.component] - u.value);
+    if mu >= opts.max_param {
+        res.stopped_by = "max_param";
+        return Ok(());
+    }
 
     loop {
         if res.lambda.len() >= opts.max_points {
@@ -536,6 +597,7 @@ fn follow_into(
                 index: res.lambda.len() - 1,
                 lambda: mu,
                 kind: if prev_dir > 0.0 { "max" } else { "min" },
+                lambda_fit: mu,
             });
         }
         let limit_here = dir != 0.0 && dir != prev_dir;
@@ -916,4 +978,41 @@ pub fn follow_all(
         Ok(pool) => pool.install(work),
         Err(_) => work(),
     }
+}
+
+/// Extremum value of the parabola through (x[k], y[k]), k = 0..3 (x distinct); None when
+/// the three points are collinear.
+fn parabola_extremum(x: &[f64], y: &[f64]) -> Option<f64> {
+    let (x0, x1, x2) = (x[0], x[1], x[2]);
+    let d01 = (y[1] - y[0]) / (x1 - x0);
+    let d12 = (y[2] - y[1]) / (x2 - x1);
+    let c2 = (d12 - d01) / (x2 - x0);
+    if !(c2.is_finite() && c2 != 0.0) {
+        return None;
+    }
+    // y = y1 + b (x − x1) + c2 (x − x1)², b = slope at x1
+    let b = d01 + c2 * (x1 - x0);
+    let v = y[1] - b * b / (4.0 * c2);
+    v.is_finite().then_some(v)
+}
+
+/// s1 − s0 by equation: coordinate differences, and for spins the rotation vector of
+/// R1 R0ᵀ (the spatial increment `apply_increment` would take from s0 to s1).
+fn state_diff(model: &Model, s0: &State, s1: &State) -> Vec<f64> {
+    use crate::math::{mat_mul, rot_log, transpose};
+    let mut d = vec![0.0; model.n_eq];
+    for (i, dof) in model.dofs.iter().enumerate() {
+        if let Some(e) = dof.eq {
+            d[e] = s1.q[i] - s0.q[i];
+        }
+    }
+    for (k, sp) in model.spins.iter().enumerate() {
+        let w = rot_log(&mat_mul(&s1.spin[k], &transpose(&s0.spin[k])));
+        for c in 0..3 {
+            if let Some(e) = model.dofs[sp.dofs[c]].eq {
+                d[e] = w[c];
+            }
+        }
+    }
+    d
 }
