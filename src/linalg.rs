@@ -1142,7 +1142,13 @@ mod tests {
                     let (p, _) = random_pattern(&mut rng, n, per_row);
                     let v = random_dd_values(&mut rng, &p);
                     let want: i8 = (0..n)
-                        .map(|i| if v[p.slot(i, i).unwrap()] < 0.0 { -1i8 } else { 1 })
+                        .map(|i| {
+                            if v[p.slot(i, i).unwrap()] < 0.0 {
+                                -1i8
+                            } else {
+                                1
+                            }
+                        })
                         .product();
                     let sym = SparseLuSymbolic::with_variant(&p, variant).unwrap();
                     let (sign, _) = sym.det_sign(&v).unwrap();

@@ -118,6 +118,9 @@ struct PathArgs {
     /// end the path where a sensor component crosses a value, e.g. load_point.y=-80
     #[arg(long, value_name = "SENSOR.COMPONENT=VALUE")]
     until: Option<String>,
+    /// end the path at its K-th limit point (at the first point past it)
+    #[arg(long, value_name = "K", value_parser = parse_limit_count)]
+    limit_points: Option<usize>,
     /// end the path after this arc length (scaled (u, ψλ) norm, see README)
     #[arg(long, value_name = "S", value_parser = parse_positive)]
     max_length: Option<f64>,
@@ -137,6 +140,13 @@ fn parse_positive(s: &str) -> Result<f64, String> {
     }
 }
 
+fn parse_limit_count(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(v) if (1..=1000).contains(&v) => Ok(v),
+        _ => Err(format!("`{s}` is not a count from 1 to 1000")),
+    }
+}
+
 fn parse_max_points(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {
         Ok(v) if (1..=100_000).contains(&v) => Ok(v),
@@ -150,6 +160,7 @@ impl PathArgs {
         self.control != "auto"
             || self.lambda_max.is_some()
             || self.until.is_some()
+            || self.limit_points.is_some()
             || self.max_length.is_some()
             || self.max_points != 2000
             || self.first_step.is_some()
@@ -180,6 +191,7 @@ impl PathArgs {
         o.max_length = self.max_length.unwrap_or(f64::INFINITY);
         o.max_points = self.max_points;
         o.until = until;
+        o.limit_points = self.limit_points;
         Ok(o)
     }
 }
@@ -708,7 +720,7 @@ fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
         return statics_path(sargs);
     }
     if sargs.path.any_option() || sargs.output.is_some() {
-        bail!("statics: --control, --lambda-max, --until, --max-length, --max-points, --first-step and -o need --path");
+        bail!("statics: --control, --lambda-max, --until, --limit-points, --max-length, --max-points, --first-step and -o need --path");
     }
     let args = &sargs.model;
     let m = args.load()?;
@@ -1233,7 +1245,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         return sweep_path(args);
     }
     if args.path.any_option() {
-        bail!("sweep: --control, --lambda-max, --until, --max-length, --max-points and --first-step need --path");
+        bail!("sweep: --control, --lambda-max, --until, --limit-points, --max-length, --max-points and --first-step need --path");
     }
     let variants = ensemble::variants(
         &args.model.model,

@@ -67,6 +67,8 @@ pub struct PathOptions {
     /// largest arc length as a multiple of the first
     pub max_growth: f64,
     pub until: Option<Until>,
+    /// end the path at its K-th limit point (the first point past it)
+    pub limit_points: Option<usize>,
 }
 
 impl PathOptions {
@@ -83,6 +85,7 @@ impl PathOptions {
             },
             max_growth: 4.0,
             until: None,
+            limit_points: None,
         }
     }
 }
@@ -170,7 +173,8 @@ pub struct PathResult {
     pub bifurcations: Vec<Bifurcation>,
     pub rejected_steps: usize,
     pub newton_iterations: usize,
-    /// why the path ended: "max_param", "until", "max_length", "max_points", "error"
+    /// why the path ended: "max_param", "until", "max_length", "max_points",
+    /// "limit_points", "error"
     pub stopped_by: &'static str,
     /// hinges locked along the path: (hinge index, point index)
     pub locks: Vec<(usize, usize)>,
@@ -457,7 +461,11 @@ fn follow_into(
         prev_sign = sg;
     }
     let mut ds = ds0;
-    let ds_max = opts.max_growth * ds0;
+    // largest arc length: that of a step of max_growth × first_step along the current
+    // tangent, and at least max_growth × the first one. A drive that starts smoothly makes
+    // the first step tiny in u (du/dλ = 0 at t = 0), so a bound fixed by it alone would
+    // hold the whole stroke to tiny steps.
+    let ds_floor = opts.max_growth * ds0;
     let ds_min = ds0 * 0.5f64.powi(MAX_HALVINGS);
     // previous accepted increment (Δu, Δμ), for the predictor's sign and the root choice
     let mut prev_du: Vec<f64> = du0;
@@ -488,6 +496,11 @@ fn follow_into(
         let g = cx.dr_dmu(s, mu, h_fd);
         let mut ut: Vec<f64> = g.iter().map(|x| -x).collect();
         cx.sys.solve_tangent(&mut ut)?;
+        let ds_max = ds_floor
+            .max(opts.max_growth * opts.first_step * (dot(&ut, &ut) + psi2).sqrt());
+        if ds_max.is_finite() {
+            ds = ds.min(ds_max);
+        }
         // Feng: keep going the way the last step went
         let orient = dot(&ut, &prev_du) + psi2 * prev_dmu;
         let sign = if orient < 0.0 { -1.0 } else { 1.0 };
@@ -619,12 +632,17 @@ fn follow_into(
         }
         prev_du = du;
         prev_dmu = dmu;
-        ds = (ds
-            * (TARGET_ITERATIONS / (iters.max(1) as f64))
-                .sqrt()
-                .clamp(0.5, 2.0))
-        .min(ds_max);
+        ds *= (TARGET_ITERATIONS / (iters.max(1) as f64))
+            .sqrt()
+            .clamp(0.5, 2.0);
 
+        if opts
+            .limit_points
+            .is_some_and(|k| res.limit_points.len() >= k)
+        {
+            res.stopped_by = "limit_points";
+            return Ok(());
+        }
         if let (Some(u), Some(p)) = (&opts.until, until_prev) {
             let now = res.sensors.last().expect("pushed")[u.sensor][u.component] - u.value;
             if now == 0.0 || now.signum() != p.signum() {
