@@ -496,8 +496,8 @@ fn follow_into(
         let g = cx.dr_dmu(s, mu, h_fd);
         let mut ut: Vec<f64> = g.iter().map(|x| -x).collect();
         cx.sys.solve_tangent(&mut ut)?;
-        let ds_max = ds_floor
-            .max(opts.max_growth * opts.first_step * (dot(&ut, &ut) + psi2).sqrt());
+        let ds_max =
+            ds_floor.max(opts.max_growth * opts.first_step * (dot(&ut, &ut) + psi2).sqrt());
         if ds_max.is_finite() {
             ds = ds.min(ds_max);
         }
@@ -781,6 +781,17 @@ fn corrector(
             roots[1]
         };
         let mut delta: Vec<f64> = dr.iter().zip(&dt).map(|(a, b)| a + dl * b).collect();
+        // a correction at the coordinates' round-off: no representable state is closer to
+        // equilibrium (a stiff model barely deformed, whose force scale is below the
+        // round-off of EA times the coordinates), as in statics
+        if norm_inf(&delta)
+            <= Convergence::ROUNDOFF_CORRECTION * f64::EPSILON * statics::coord_scale(model)
+        {
+            if !cx.asm.deformation_in_range(model, s) {
+                return Ok(Err(("(element deformation out of range)".into(), res)));
+            }
+            return Ok(Ok((du, dmu, it)));
+        }
         let before = delta.clone();
         cx.asm.limit_rotation_step(&mut delta, MAX_NEWTON_ANGLE);
         if delta != before {

@@ -116,7 +116,7 @@ pub fn newton(
 }
 
 /// Largest distance of a node from the first: the size of the model's coordinates.
-fn coord_scale(model: &Model) -> f64 {
+pub(crate) fn coord_scale(model: &Model) -> f64 {
     model.x0.first().map_or(1.0, |o| {
         model.x0.iter().fold(1.0f64, |m, x| {
             m.max(crate::math::norm(crate::math::sub(*x, *o)))
