@@ -1135,7 +1135,7 @@ mod tests {
     /// variant's column order, with pivoting that need not keep the diagonal in place.
     #[test]
     fn det_sign_of_diagonally_dominant_matrices_is_the_product_of_diagonal_signs() {
-        let mut rng = Lcg(0x5eed_d37);
+        let mut rng = Lcg(0x05ee_dd37);
         for &variant in &VARIANTS {
             for &(n, per_row) in &[(1, 0), (2, 1), (7, 2), (40, 3), (200, 4)] {
                 for _ in 0..5 {

@@ -345,7 +345,7 @@ fn follow_into(
     s: &mut State,
     res: &mut PathResult,
 ) -> Result<(), PathError> {
-    if !(opts.max_param > 0.0) {
+    if opts.max_param.is_nan() || opts.max_param <= 0.0 {
         return Err(PathError::Input(format!(
             "the largest path parameter must be positive, got {}",
             opts.max_param
@@ -516,10 +516,10 @@ fn follow_into(
                     ds *= 0.5;
                     if ds < ds_min {
                         cx.place(s, mu);
-                        if let Some(e) = statics::free_motions(model, s, cx.load_factor(mu)) {
-                            if let StaticsError::FreeMotion { motions, .. } = e {
-                                return Err(PathError::Mechanism { what, mu, motions });
-                            }
+                        if let Some(StaticsError::FreeMotion { motions, .. }) =
+                            statics::free_motions(model, s, cx.load_factor(mu))
+                        {
+                            return Err(PathError::Mechanism { what, mu, motions });
                         }
                         return Err(PathError::Stalled {
                             what,
@@ -693,6 +693,10 @@ fn det_sign(cx: &mut Ctx, s: &mut State, mu: f64) -> i8 {
         .unwrap_or(0)
 }
 
+/// A converged step (Δu, Δμ, iterations), or why it must be cut: (the worst residual's
+/// coordinate or the reason, that residual).
+type StepOutcome = Result<(Vec<f64>, f64, usize), (String, f64)>;
+
 /// One arc-length step from the converged (s, μ) along tangent `ut` with predicted Δμ.
 /// Ok(Ok((Δu, Δμ, iterations))) when converged; Ok(Err((dof, residual))) when the step
 /// must be cut (diverged, no real root, too large a rotation).
@@ -706,7 +710,7 @@ fn corrector(
     ds: f64,
     psi2: f64,
     h_fd: f64,
-) -> Result<Result<(Vec<f64>, f64, usize), (String, f64)>, PathError> {
+) -> Result<StepOutcome, PathError> {
     let model = cx.model;
     let n = ut.len();
     let mut du: Vec<f64> = ut.iter().map(|x| x * dmu_pred).collect();
@@ -755,7 +759,7 @@ fn corrector(
         let a2 = 2.0 * (dot(&dt, &w) + psi2 * dmu);
         let a3 = dot(&w, &w) + psi2 * dmu * dmu - ds * ds;
         let disc = a2 * a2 - 4.0 * a1 * a3;
-        if !(disc >= 0.0) {
+        if disc.is_nan() || disc < 0.0 {
             return Ok(Err(statics::worst_dof(model, &cx.sys.r)));
         }
         // numerically stable roots
