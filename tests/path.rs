@@ -327,3 +327,32 @@ fn path_campaign_file_holds_the_path_parameter_as_time() {
     }
     assert_eq!(*time.last().unwrap(), 1.0);
 }
+
+#[test]
+fn euler_column_bifurcation_is_reported_at_the_buckling_load_without_a_limit_point() {
+    // A perfect cantilever column under a compressive tip force stays straight: the path
+    // is the trivial branch with λ rising, and det K changes sign where the first
+    // buckling mode loses its stiffness, P_cr = π²EI/(4L²) (EIy = 100 → 246.74; the
+    // other plane, EIz = 200, buckles at 493.5, beyond λ_max). Reported as a bifurcation
+    // (λ still rising), bracketed by the two path points around it. The 16-element
+    // Hermite mesh's buckling load is within 1e-6 of the closed form (O(h⁴)), far inside
+    // the bracket; the axial shortening P/EA = 3e-5 shifts it by as much.
+    let props = "EA = 1.0e7\nEIy = 100.0\nEIz = 200.0\nGJ = 80.0\nrhoA = 1.0";
+    let m = straight_beam("clamped", 16, props, [-300.0, 0.0, 0.0], [0.0; 3], "");
+    let mut o = PathOptions::new(Control::Load, 1.0);
+    o.first_step = 0.01;
+    let r = path::follow(&m, &o);
+    assert!(r.error.is_none(), "{:?}", r.error.map(|e| e.to_string()));
+    assert!(r.limit_points.is_empty(), "{:?}", r.limit_points);
+    assert_eq!(r.bifurcations.len(), 1, "{:?}", r.bifurcations);
+    let i = r.bifurcations[0].index;
+    let p_cr = std::f64::consts::PI.powi(2) * 100.0 / 4.0 / 300.0;
+    assert!(
+        r.lambda[i - 1] < p_cr && p_cr <= r.lambda[i],
+        "bracket {} .. {} vs {p_cr}",
+        r.lambda[i - 1],
+        r.lambda[i]
+    );
+    assert_eq!(r.det_sign[i - 1], 1);
+    assert_eq!(r.det_sign[i], -1);
+}
