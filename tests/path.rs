@@ -199,8 +199,47 @@ fn minimast_bay_quasi_static_stroke_has_the_dynamic_moment_humps_and_a_fold_befo
     let fold = r.limit_points[0].lambda_fit;
     assert!(fold > 0.95 && fold < 0.98, "fold at t/T = {fold}");
     assert!(r.locks.is_empty());
-    // det K changes sign at the fold
-    assert_eq!(*r.det_sign.last().unwrap(), -1);
+    // (det K's sign does not mark this fold: in the 3-fold symmetric bay an even number
+    // of eigenvalues may cross zero near it; the fold is found from Δλ turning)
+
+    // A slow dynamic deployment (T = 4 s, 1000 steps of 4 ms) follows the path: at equal
+    // stroke (t = τ·T; the drive is a function of t/T), up to 1 % of T before the fold
+    // (where dq/dτ is infinite), every member moment within 0.2 % of its quasi-static
+    // peak. Measured 0.031 % (diagonal A mid), 0.020 % (longeron top); the inertia part
+    // falls as 1/T² (docs/studies/minimast_quasistatic.md: 0.32 %, 0.020 %, 0.001 % at
+    // T = 1, 4, 16 s with dt = 1 ms).
+    let (t_dyn, dt) = (4.0, 4e-3);
+    let md = shipped(
+        "minimast_bay.toml",
+        &[("T", t_dyn), ("t_end", t_dyn), ("dt", dt)],
+    );
+    let (hist, _, err) = latdyn::solver::dynamics::run(&md, |_, _| {});
+    assert!(err.is_none(), "{:?}", err.map(|e| e.to_string()));
+    for name in ["longeron_top", "longeron_mid", "diagonal_a_mid"] {
+        let k = m.sensor_index(name).unwrap();
+        let bend = |v: &[f64]| (v[4].powi(2) + v[5].powi(2)).sqrt();
+        let qs: Vec<f64> = r.sensors.iter().map(|p| bend(&p[k])).collect();
+        let peak = qs.iter().fold(0.0f64, |a, &b| a.max(b));
+        let dynv: Vec<f64> = hist.values[k].iter().map(|v| bend(v)).collect();
+        let mut worst = 0.0f64;
+        for (tau, q) in r.lambda.iter().zip(&qs) {
+            if *tau > fold - 0.01 {
+                continue;
+            }
+            let t = tau * t_dyn;
+            let j = hist
+                .t
+                .partition_point(|&x| x < t)
+                .clamp(1, hist.t.len() - 1);
+            let w = (t - hist.t[j - 1]) / (hist.t[j] - hist.t[j - 1]);
+            let d = dynv[j - 1] + w * (dynv[j] - dynv[j - 1]);
+            worst = worst.max((d - q).abs() / peak);
+        }
+        assert!(
+            worst < 2e-3,
+            "{name}: dynamic − quasi-static up to {worst:.2e} of {peak}"
+        );
+    }
 }
 
 fn tmp(name: &str) -> std::path::PathBuf {

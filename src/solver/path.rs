@@ -228,10 +228,12 @@ impl Ctx<'_> {
         self.sys.evaluate(self.model, &self.asm, s, c, factor)
     }
 
-    /// ∂r/∂μ at (s, μ), by equation. Loads: exactly r(μ+1) − r(μ) (the residual is linear
-    /// in the load factor). Drivers: a central difference over ±h in the pseudo-time;
-    /// its O(h²) error only slows the corrector's convergence in μ, never the equilibrium
-    /// it converges to. Leaves `sys.r` as the residual at (s, μ).
+    /// ∂r/∂μ at (s, μ), by equation, given `sys.r` = r(s, μ). Loads: exactly r(μ+1) − r(μ)
+    /// (the residual is linear in the load factor). Drivers: a central difference over ±h
+    /// in the pseudo-time; its O(h²) error only slows the corrector's convergence in μ,
+    /// never the equilibrium it converges to. (A forward difference, one evaluation less,
+    /// saved 4 % of the Mini-Mast path's time and moved its points near the fold.)
+    /// Leaves `sys.r` as the residual at (s, μ).
     fn dr_dmu(&mut self, s: &mut State, mu: f64, h: f64) -> Vec<f64> {
         let r0 = self.sys.r.clone();
         let g = match self.control {
