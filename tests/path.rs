@@ -395,3 +395,69 @@ fn euler_column_bifurcation_is_reported_at_the_buckling_load_without_a_limit_poi
     assert_eq!(r.det_sign[i - 1], 1);
     assert_eq!(r.det_sign[i], -1);
 }
+
+#[test]
+fn hinge_locks_along_a_path_at_its_lock_angle_and_the_beam_then_bends_as_clamped() {
+    // A beam on a root hinge with a torsional spring k; a tip load −P·λ along y turns
+    // the hinge (θ ≈ −PLλ/k, reaching −0.05 at λ ≈ 0.5) until it locks at −0.05, after
+    // which the root is clamped: at λ = 1 the tip is at −L sin(0.05) − PL³/(3EI) to first
+    // order (−0.08331). Bound 1 % of it: the geometric nonlinearity at a 0.05 rad turn and
+    // 0.033 deflection is ~0.3 %.
+    let text = r#"
+[parameters]
+P = 10.0
+[sections.s]
+EA = 1.0e7
+EIy = 100.0
+EIz = 100.0
+GJ = 80.0
+rhoA = 1.0
+[[nodes]]
+name = "root"
+position = [0, 0, 0]
+[[nodes]]
+name = "tip"
+position = [1, 0, 0]
+[[beams]]
+name = "beam"
+from = "root"
+to = "tip"
+elements = 8
+section = "s"
+orientation = [0, 0, 1]
+[[joints]]
+name = "root_hinge"
+node = "root"
+body = "ground"
+type = "hinge"
+axis = [0, 0, 1]
+stiffness = 100.0
+lock_angle = -0.05
+[[loads]]
+node = "tip"
+force = [0, "-P", 0]
+[[sensors]]
+name = "tip"
+type = "node"
+node = "tip"
+[[sensors]]
+name = "hinge"
+type = "hinge"
+joint = "root_hinge"
+"#;
+    let m = latdyn::model::compile_str(text, "locking_beam.toml", &[]).unwrap();
+    let r = path::follow(&m, &PathOptions::new(Control::Load, 1.0));
+    assert!(r.error.is_none(), "{:?}", r.error.map(|e| e.to_string()));
+    assert_eq!(r.locks.len(), 1, "{:?}", r.locks);
+    let (h, at) = (m.sensor_index("hinge").unwrap(), r.locks[0].1);
+    // before the lock the angle had not reached it; from the lock on it stays there exactly
+    assert!(r.sensors[at - 1][h][0] > -0.05);
+    for p in &r.sensors[at..] {
+        assert_eq!(p[h][0], -0.05);
+    }
+    let tip = m.sensor_index("tip").unwrap();
+    let y = r.sensors.last().unwrap()[tip][1];
+    let want = -(0.05f64).sin() - 10.0 / (3.0 * 100.0);
+    assert!((y / want - 1.0).abs() < 0.01, "tip y {y} vs {want}");
+    assert_eq!(*r.lambda.last().unwrap(), 1.0);
+}
