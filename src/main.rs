@@ -1790,6 +1790,7 @@ fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     use latdyn::solver::path;
     let m = args.model.load()?;
     let opts = args.path.options(&m)?;
+    path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
     let target = args.output.as_deref().map(claim_output).transpose()?;
     let t0 = std::time::Instant::now();
     let r = path::follow(&m, &opts);
@@ -1861,6 +1862,11 @@ fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     )?;
     let (k, n) = args.shard.unwrap_or((1, 1));
     let chosen: Vec<usize> = (0..variants.len()).filter(|i| i % n == k - 1).collect();
+    {
+        let m0 = args.model.load()?;
+        path::check_output_size(&m0, args.path.max_points, chosen.len())
+            .map_err(|e| anyhow!("{}: {e}", m0.path))?;
+    }
     let mut models = Vec::with_capacity(chosen.len());
     let mut opts = Vec::with_capacity(chosen.len());
     for &gi in &chosen {

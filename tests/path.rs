@@ -339,6 +339,18 @@ fn path_options_are_checked_and_named() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(want), "{args:?}: {err}");
     }
+    // the points a path may keep count against the output limit before it runs
+    let out = bin()
+        .args(["statics", &lee, "--path"])
+        .env("LATDYN_LIMITS", "output_values=20000")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--max-points") && err.contains("output_values"),
+        "{err}"
+    );
 }
 
 #[test]

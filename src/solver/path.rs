@@ -1051,3 +1051,36 @@ fn state_diff(model: &Model, s0: &State, s1: &State) -> Vec<f64> {
     }
     d
 }
+
+/// The values `n_variants` paths of at most `max_points` points keep (sensor components,
+/// λ and the time column), against the `output_values` limit (`LATDYN_LIMITS`), before
+/// anything is run or allocated.
+pub fn check_output_size(
+    model: &Model,
+    max_points: usize,
+    n_variants: usize,
+) -> Result<(), String> {
+    let lim = crate::model::Limits::from_env()?;
+    let per_point = 2.0
+        + model
+            .sensors
+            .iter()
+            .map(|s| sensors::components(&s.kind).len() as f64)
+            .sum::<f64>();
+    let total = per_point * max_points as f64 * n_variants as f64;
+    if total > lim.output_values as f64 {
+        return Err(crate::model::limits::exceeded(
+            &format!(
+                "values the paths keep, {} per point (sensor components + λ + time) × {} \
+                 points (--max-points) × {} variants",
+                crate::model::limits::count(per_point),
+                max_points,
+                n_variants
+            ),
+            total,
+            "output_values",
+            lim.output_values,
+        ));
+    }
+    Ok(())
+}
