@@ -95,7 +95,16 @@ def minimast(path, out):
         L.append(f"| {r['v']} | {r['a']:+.4f} | {math.degrees(r['a']):+.2f} | {('clean' if r['clean'] else '**forced**') if r['ok'] else '**failed**'} | "
                  f"{r['lmid']:.1f} | {r['ltop']:.1f} | {r['twist']:.1f} | {r['dia']:.1f} | {r['drive']/1e3:.2f} | "
                  f"{r['turn']:.2f} | {r['post_n']:.0f} | {r['why']} |")
-    open(out, "w").write("\n".join(L) + "\n")
+    # the quasi-static screening section (examples/minimast_quasistatic.py --study) stays
+    keep = ""
+    try:
+        old = open(out).read()
+        mark = "## Quasi-static screening"
+        if mark in old:
+            keep = "\n" + old[old.index(mark):]
+    except FileNotFoundError:
+        pass
+    open(out, "w").write("\n".join(L) + "\n" + keep)
     print(f"wrote {out}; {len(deployed)} of {len(rows)} deploy, {len(good)} clean")
 
 

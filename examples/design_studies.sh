@@ -19,6 +19,8 @@ have() { [[ "${REUSE:-0}" == 1 && -f "$1" ]]; }
 MS=$OUT/minimast_hinge_sweep.h5
 have "$MS" || $L sweep models/minimast_bay.toml --vary longeron_axis_angle=-0.1:0.1:51 -o "$MS"
 python3 examples/design_studies.py minimast "$MS" docs/studies/minimast_hinge_sweep.md
+# the same designs screened quasi-statically (sweep --path), timed beside the dynamic sweep
+python3 examples/minimast_quasistatic.py "$L" --study
 BC=$OUT/blade_campaign.h5
 have "$BC" || $L sweep models/flapping_blade.toml --vary omega=1:9:33 --frequency mid_moment -o "$BC"
 BM=$OUT/blade_modes.json

@@ -11,7 +11,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{anyhow, Context};
+use anyhow::{anyhow, bail, Context};
 use clap::{Args, Parser, Subcommand};
 use latdyn::model::{self, DofMode, Model};
 
@@ -30,8 +30,9 @@ struct Cli {
 enum Verb {
     /// Load and compile a model and print a summary; `--gpu` lists the GPU adapters
     Check(CheckArgs),
-    /// Static equilibrium under the model's loads
-    Statics(ModelArgs),
+    /// Static equilibrium under the model's loads; `--path` follows the equilibrium path
+    /// (arc length in the load factor or the drivers' pseudo-time)
+    Statics(StaticsArgs),
     /// Natural frequencies and mode shapes (about the static equilibrium under the model's
     /// loads, or the reference configuration)
     Modes(ModesArgs),
@@ -84,6 +85,114 @@ struct ModelArgs {
 impl ModelArgs {
     fn load(&self) -> anyhow::Result<Model> {
         Ok(model::load(&self.model, &self.set)?)
+    }
+}
+
+#[derive(Args)]
+struct StaticsArgs {
+    #[command(flatten)]
+    model: ModelArgs,
+    #[command(flatten)]
+    path: PathArgs,
+    /// with --path: the path in the campaign layout (HDF5), the path parameter as time
+    #[arg(short, long, value_name = "PATH")]
+    output: Option<PathBuf>,
+}
+
+/// Path following options of `statics --path` and `sweep --path` (README "Path following").
+#[derive(Args, Clone)]
+struct PathArgs {
+    /// follow the equilibrium path by arc-length continuation through limit points and
+    /// snap-backs, instead of one equilibrium
+    #[arg(long)]
+    path: bool,
+    /// what the path parameter λ scales: `load` (the model's loads × λ), `drivers` (drive
+    /// expressions at pseudo-time λ, loads at full value), `auto` (drivers when a drive
+    /// changes over [0, t_end], else load)
+    #[arg(long, default_value = "auto", value_parser = ["auto", "load", "drivers"])]
+    control: String,
+    /// end the path where λ reaches this value (default: 1 for load control without
+    /// --until, t_end for drivers, else no bound)
+    #[arg(long, value_name = "LAMBDA", value_parser = parse_positive)]
+    lambda_max: Option<f64>,
+    /// end the path where a sensor component crosses a value, e.g. load_point.y=-80
+    #[arg(long, value_name = "SENSOR.COMPONENT=VALUE")]
+    until: Option<String>,
+    /// end the path at its K-th limit point (at the first point past it)
+    #[arg(long, value_name = "K", value_parser = parse_limit_count)]
+    limit_points: Option<usize>,
+    /// end the path after this arc length (scaled (u, ψλ) norm, see README)
+    #[arg(long, value_name = "S", value_parser = parse_positive)]
+    max_length: Option<f64>,
+    /// most path points (1 to 100000)
+    #[arg(long, default_value_t = 2000, value_parser = parse_max_points)]
+    max_points: usize,
+    /// first increment of λ (default: λ_max/50, or 0.02 without a bound); later
+    /// increments follow from the arc length, adapted to the Newton iteration counts
+    #[arg(long, value_name = "DLAMBDA", value_parser = parse_positive)]
+    first_step: Option<f64>,
+}
+
+fn parse_positive(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("`{s}` is not a finite positive number")),
+    }
+}
+
+fn parse_limit_count(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(v) if (1..=1000).contains(&v) => Ok(v),
+        _ => Err(format!("`{s}` is not a count from 1 to 1000")),
+    }
+}
+
+fn parse_max_points(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(v) if (1..=100_000).contains(&v) => Ok(v),
+        _ => Err(format!("`{s}` is not a point count from 1 to 100000")),
+    }
+}
+
+impl PathArgs {
+    /// Whether any path option was given (they need --path).
+    fn any_option(&self) -> bool {
+        self.control != "auto"
+            || self.lambda_max.is_some()
+            || self.until.is_some()
+            || self.limit_points.is_some()
+            || self.max_length.is_some()
+            || self.max_points != 2000
+            || self.first_step.is_some()
+    }
+
+    fn options(&self, m: &Model) -> anyhow::Result<latdyn::solver::path::PathOptions> {
+        use latdyn::solver::path::{self, Control, PathOptions};
+        let control = match self.control.as_str() {
+            "load" => Control::Load,
+            "drivers" => Control::Drivers,
+            _ => path::default_control(m),
+        };
+        let until = self
+            .until
+            .as_deref()
+            .map(|u| path::parse_until(m, u))
+            .transpose()
+            .map_err(|e| anyhow!("{}: {e}", m.path))?;
+        let max_param = self.lambda_max.unwrap_or(match control {
+            Control::Load if until.is_none() => 1.0,
+            Control::Load => f64::INFINITY,
+            Control::Drivers => m.solver.t_end,
+        });
+        let mut o = PathOptions::new(control, max_param);
+        if let Some(f) = self.first_step {
+            o.first_step = f;
+        }
+        o.max_length = self.max_length.unwrap_or(f64::INFINITY);
+        o.max_points = self.max_points;
+        o.until = until;
+        o.limit_points = self.limit_points;
+        Ok(o)
     }
 }
 
@@ -144,6 +253,8 @@ struct ModesArgs {
 struct SweepArgs {
     #[command(flatten)]
     model: ModelArgs,
+    #[command(flatten)]
+    path: PathArgs,
     /// vary a parameter: NAME=START:STOP:COUNT (repeatable; several make a full grid)
     #[arg(long = "vary", value_name = "NAME=START:STOP:COUNT", value_parser = latdyn::ensemble::Range::parse)]
     vary: Vec<latdyn::ensemble::Range>,
@@ -604,7 +715,14 @@ fn sensor_map(m: &Model, vals: &[Vec<f64>]) -> serde_json::Map<String, serde_jso
         .collect()
 }
 
-fn statics(args: &ModelArgs) -> anyhow::Result<()> {
+fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
+    if sargs.path.path {
+        return statics_path(sargs);
+    }
+    if sargs.path.any_option() || sargs.output.is_some() {
+        bail!("statics: --control, --lambda-max, --until, --limit-points, --max-length, --max-points, --first-step and -o need --path");
+    }
+    let args = &sargs.model;
     let m = args.load()?;
     let t0 = std::time::Instant::now();
     let sol = latdyn::solver::solve_statics(&m).with_context(|| m.path.clone())?;
@@ -1123,6 +1241,12 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     use latdyn::ensemble::{self, Campaign};
     use std::io::IsTerminal;
     use std::sync::atomic::Ordering;
+    if args.path.path {
+        return sweep_path(args);
+    }
+    if args.path.any_option() {
+        bail!("sweep: --control, --lambda-max, --until, --limit-points, --max-length, --max-points and --first-step need --path");
+    }
     let variants = ensemble::variants(
         &args.model.model,
         &args.model.set,
@@ -1659,4 +1783,174 @@ fn error_chain(e: &anyhow::Error) -> String {
         out += &s;
     }
     out
+}
+
+/// `statics --path`: one equilibrium path, JSON / text summary, optional campaign file.
+fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
+    use latdyn::solver::path;
+    let m = args.model.load()?;
+    let opts = args.path.options(&m)?;
+    path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
+    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let t0 = std::time::Instant::now();
+    let r = path::follow(&m, &opts);
+    let wall = t0.elapsed().as_secs_f64();
+    let mut out_err = None;
+    if let Some(t) = target {
+        let meta = path::campaign_meta(
+            &[&m],
+            r.lambda.clone(),
+            std::env::args().collect::<Vec<_>>().join(" "),
+            1,
+        );
+        let written = latdyn::output::CampaignWriter::create_at(t, &meta).and_then(|mut w| {
+            path::write_variant(&mut w, 0, &r, wall)?;
+            w.finish("complete")
+        });
+        out_err = written.err();
+    }
+    if args.model.json {
+        emit(&format!("{}\n", path::to_json(&m, &r, wall)))?;
+    } else {
+        let mut s = format!(
+            "path {} ({} control): {} points, {} Newton iterations, {} rejected steps, {:.3} s; \
+             λ from {:.6e} to {:.6e}, stopped by {}\n",
+            m.name,
+            r.control.label(),
+            r.lambda.len(),
+            r.newton_iterations,
+            r.rejected_steps,
+            wall,
+            r.lambda.first().copied().unwrap_or(0.0),
+            r.lambda.last().copied().unwrap_or(0.0),
+            r.stopped_by
+        );
+        for lp in &r.limit_points {
+            s += &format!(
+                "  limit point ({}) at λ = {:.6e} (point {}; parabola through its neighbours: \
+                 {:.6e})\n",
+                lp.kind, lp.lambda, lp.index, lp.lambda_fit
+            );
+        }
+        for b in &r.bifurcations {
+            s += &format!("  det K changes sign at λ = {:.6e} (point {}) with λ still moving the same way: bifurcation\n", b.lambda, b.index);
+        }
+        emit(&s)?;
+    }
+    if let Some(e) = out_err {
+        return Err(fail(EXIT_OUTPUT, e.to_string()));
+    }
+    match &r.error {
+        Some(path::PathError::Input(msg)) => bail!("{}: {msg}", m.path),
+        Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
+        None => Ok(()),
+    }
+}
+
+/// `sweep --path`: a path per variant, in parallel; JSON per variant, optional campaign
+/// file with the point index as time and λ in `path_lambda`.
+fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
+    use latdyn::solver::path;
+    if args.accuracy.is_some() || args.frequency.is_some() || args.verify.is_some() {
+        bail!("sweep --path: --accuracy, --frequency and --verify apply to dynamic runs only");
+    }
+    let variants = latdyn::ensemble::variants(
+        &args.model.model,
+        &args.model.set,
+        &args.vary,
+        args.variants.as_deref(),
+    )?;
+    let (k, n) = args.shard.unwrap_or((1, 1));
+    let chosen: Vec<usize> = (0..variants.len()).filter(|i| i % n == k - 1).collect();
+    {
+        let m0 = args.model.load()?;
+        path::check_output_size(&m0, args.path.max_points, chosen.len())
+            .map_err(|e| anyhow!("{}: {e}", m0.path))?;
+    }
+    let mut models = Vec::with_capacity(chosen.len());
+    let mut opts = Vec::with_capacity(chosen.len());
+    for &gi in &chosen {
+        let mut sets = args.model.set.clone();
+        sets.extend(variants[gi].iter().cloned());
+        let m = model::load(&args.model.model, &sets)?;
+        opts.push(args.path.options(&m)?);
+        models.push(m);
+    }
+    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    let threads = args.threads.unwrap_or(cores);
+    let t0 = std::time::Instant::now();
+    let results = path::follow_all(&models, &opts, threads);
+    let wall = t0.elapsed().as_secs_f64();
+    let failed = results.iter().filter(|(r, _)| r.error.is_some()).count();
+    let mut out_err = None;
+    if let (Some(t), false) = (target, models.is_empty()) {
+        let npts = results
+            .iter()
+            .map(|(r, _)| r.lambda.len())
+            .max()
+            .unwrap_or(0);
+        let refs: Vec<&Model> = models.iter().collect();
+        let mut meta = path::campaign_meta(
+            &refs,
+            (0..npts).map(|i| i as f64).collect(),
+            std::env::args().collect::<Vec<_>>().join(" "),
+            threads,
+        );
+        meta.global_index = chosen.clone();
+        let written = latdyn::output::CampaignWriter::create_at(t, &meta).and_then(|mut w| {
+            for (v, (r, ws)) in results.iter().enumerate() {
+                path::write_variant(&mut w, v, r, *ws)?;
+            }
+            w.finish("complete")
+        });
+        out_err = written.err();
+    }
+    if args.model.json {
+        let vs: Vec<serde_json::Value> = results
+            .iter()
+            .zip(&models)
+            .zip(&chosen)
+            .map(|(((r, ws), m), gi)| {
+                let mut v = path::to_json(m, r, *ws);
+                v["index"] = serde_json::json!(gi);
+                v["parameters"] = serde_json::json!(variants[*gi]
+                    .iter()
+                    .map(|(k, x)| (k.clone(), *x))
+                    .collect::<std::collections::BTreeMap<_, _>>());
+                v
+            })
+            .collect();
+        let v = serde_json::json!({
+            "variants": vs,
+            "failed": failed,
+            "threads": threads,
+            "wall_s": wall,
+        });
+        emit(&format!("{v}\n"))?;
+    } else {
+        eprintln!(
+            "sweep --path {}: {} variants ({} failed) on {} threads in {:.3} s",
+            args.model.model.display(),
+            results.len(),
+            failed,
+            threads,
+            wall
+        );
+    }
+    if let Some(e) = out_err {
+        return Err(fail(EXIT_OUTPUT, e.to_string()));
+    }
+    if failed > 0 {
+        return Err(fail(
+            EXIT_FAILED,
+            format!(
+                "sweep --path: {failed} of {} variants failed",
+                results.len()
+            ),
+        ));
+    }
+    Ok(())
 }

@@ -228,6 +228,15 @@ impl NewtonSystem {
         self.lu.symbolic()
     }
 
+    /// Solve J x = b in place with the last factorization (path following's tangent
+    /// solves); non-finite results are an error.
+    pub fn solve_tangent(&mut self, b: &mut [f64]) -> Result<(), LinalgError> {
+        let t0 = Instant::now();
+        let r = self.lu.try_solve_in_place(b);
+        self.times.factorization_s += t0.elapsed().as_secs_f64();
+        r
+    }
+
     /// Solve J Δ = −r with the last factorization.
     pub fn solve_neg_residual(&mut self, dx: &mut [f64]) -> Result<(), LinalgError> {
         let t0 = Instant::now();

@@ -4,6 +4,7 @@
 pub mod dynamics;
 pub mod linear;
 pub mod modes;
+pub mod path;
 pub mod rotating;
 pub mod statics;
 

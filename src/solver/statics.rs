@@ -116,7 +116,7 @@ pub fn newton(
 }
 
 /// Largest distance of a node from the first: the size of the model's coordinates.
-fn coord_scale(model: &Model) -> f64 {
+pub(crate) fn coord_scale(model: &Model) -> f64 {
     model.x0.first().map_or(1.0, |o| {
         model.x0.iter().fold(1.0f64, |m, x| {
             m.max(crate::math::norm(crate::math::sub(*x, *o)))
@@ -291,22 +291,7 @@ fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
         .filter(|&j| ev[j].abs() <= FREE_MOTION_TOL * scale)
         .collect();
     if lambda == 0.0 {
-        if free.is_empty() {
-            return None;
-        }
-        let mut parts = Vec::new();
-        for (c, &j) in free.iter().take(6).enumerate() {
-            // back to coordinates: x = D w
-            let x: Vec<f64> = (0..n).map(|i| d[i] * vecs[j * n + i]).collect();
-            parts.push(format!("{}: {}", c + 1, describe(model, &x)));
-        }
-        if free.len() > 6 {
-            parts.push(format!("and {} more", free.len() - 6));
-        }
-        return Some(StaticsError::FreeMotion {
-            motions: parts.join("; "),
-            plural: if free.len() > 1 { "s" } else { "" },
-        });
+        return name_free_motions(model, &free, &vecs, &d);
     }
     let min = ev.first().copied().unwrap_or(0.0);
     // the reference state's smallest scaled eigenvalue: the stiffness before the loads
@@ -337,6 +322,49 @@ fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
     } else {
         None
     }
+}
+
+fn name_free_motions(
+    model: &Model,
+    free: &[usize],
+    vecs: &[f64],
+    d: &[f64],
+) -> Option<StaticsError> {
+    let n = model.n_eq;
+    if free.is_empty() {
+        return None;
+    }
+    let mut parts = Vec::new();
+    for (c, &j) in free.iter().take(6).enumerate() {
+        // back to coordinates: x = D w
+        let x: Vec<f64> = (0..n).map(|i| d[i] * vecs[j * n + i]).collect();
+        parts.push(format!("{}: {}", c + 1, describe(model, &x)));
+    }
+    if free.len() > 6 {
+        parts.push(format!("and {} more", free.len() - 6));
+    }
+    Some(StaticsError::FreeMotion {
+        motions: parts.join("; "),
+        plural: if free.len() > 1 { "s" } else { "" },
+    })
+}
+
+/// The zero-stiffness motions of the tangent at `s` (loads at `load_factor`), named by
+/// coordinate as in [`StaticsError::FreeMotion`]; None when there are none or the model
+/// is too large for the dense diagnosis. Path following uses it wherever the stiffness
+/// turns singular (at the start, or along the path when no step size passes).
+pub fn free_motions(model: &Model, s: &State, load_factor: f64) -> Option<StaticsError> {
+    let n = model.n_eq;
+    if n == 0 || n > MAX_DIAGNOSIS_DOFS {
+        return None;
+    }
+    let (k, d) = scaled_tangent(model, s, load_factor);
+    let (ev, vecs) = crate::linalg::sym_eig(&k, n).ok()?;
+    let scale = ev.iter().fold(0.0f64, |a, b| a.max(b.abs())).max(1e-300);
+    let free: Vec<usize> = (0..n)
+        .filter(|&j| ev[j].abs() <= FREE_MOTION_TOL * scale)
+        .collect();
+    name_free_motions(model, &free, &vecs, &d)
 }
 
 /// The largest components of a free motion, by coordinate name, as shares of the largest.
