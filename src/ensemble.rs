@@ -609,24 +609,7 @@ pub fn run_verified_to(
                     .collect(),
                 global_index: p.global_index.clone(),
                 time: p.time.clone(),
-                sensors: first
-                    .map(|m| {
-                        m.sensors
-                            .iter()
-                            .map(|s| SensorMeta {
-                                name: s.name.clone(),
-                                components: sensors::components(&s.kind)
-                                    .iter()
-                                    .map(|x| x.to_string())
-                                    .collect(),
-                                units: sensors::units(&s.kind)
-                                    .iter()
-                                    .map(|x| x.to_string())
-                                    .collect(),
-                            })
-                            .collect()
-                    })
-                    .unwrap_or_default(),
+                sensors: first.map(SensorMeta::of_model).unwrap_or_default(),
             };
             Some(Mutex::new(CampaignWriter::create_at(target, &meta)?))
         }

@@ -1219,21 +1219,7 @@ fn single_meta(m: &Model, stage: &latdyn::ensemble::Stage) -> latdyn::output::Ca
         parameter_values: vec![m.params.iter().map(|(_, v)| *v).collect()],
         global_index: vec![0],
         time: latdyn::solver::dynamics::output_times(m),
-        sensors: m
-            .sensors
-            .iter()
-            .map(|s| SensorMeta {
-                name: s.name.clone(),
-                components: latdyn::sensors::components(&s.kind)
-                    .iter()
-                    .map(|x| x.to_string())
-                    .collect(),
-                units: latdyn::sensors::units(&s.kind)
-                    .iter()
-                    .map(|x| x.to_string())
-                    .collect(),
-            })
-            .collect(),
+        sensors: SensorMeta::of_model(m),
     }
 }
 

@@ -135,6 +135,26 @@ pub struct SensorMeta {
     pub units: Vec<String>,
 }
 
+impl SensorMeta {
+    /// The model's sensors as the campaign layout names them.
+    pub fn of_model(m: &crate::model::Model) -> Vec<SensorMeta> {
+        m.sensors
+            .iter()
+            .map(|s| SensorMeta {
+                name: s.name.clone(),
+                components: crate::sensors::components(&s.kind)
+                    .iter()
+                    .map(|x| x.to_string())
+                    .collect(),
+                units: crate::sensors::units(&s.kind)
+                    .iter()
+                    .map(|x| x.to_string())
+                    .collect(),
+            })
+            .collect()
+    }
+}
+
 /// Everything known about a campaign before it runs.
 ///
 /// The number of variants is `parameter_values.len()`; `global_index` has one entry per

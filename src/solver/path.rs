@@ -915,21 +915,7 @@ pub fn campaign_meta(
 ) -> crate::output::CampaignMeta {
     use crate::output::{CampaignMeta, SensorMeta};
     let m = models[0];
-    let mut sensors: Vec<SensorMeta> = m
-        .sensors
-        .iter()
-        .map(|s| SensorMeta {
-            name: s.name.clone(),
-            components: sensors::components(&s.kind)
-                .iter()
-                .map(|x| x.to_string())
-                .collect(),
-            units: sensors::units(&s.kind)
-                .iter()
-                .map(|x| x.to_string())
-                .collect(),
-        })
-        .collect();
+    let mut sensors = SensorMeta::of_model(m);
     sensors.push(SensorMeta {
         name: LAMBDA_SENSOR.into(),
         components: vec!["lambda".into()],
