@@ -67,24 +67,33 @@ fn history_error(run: &Value, reference: &Value, sensor: &str) -> f64 {
 #[test]
 fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
     // each of these is 7 % to 17× off the converged answer (issue 14); each must say so
-    for (model, sets, sensor) in [
+    let cases: [(&str, Vec<&str>, &[&str]); 5] = [
         (
             "models/spinup_beam.toml",
             vec!["dt=0.05", "t_end=16"],
-            "tip_deflection",
+            &["tip_deflection"],
         ),
         (
             "models/rotating_cantilever.toml",
             vec!["dt=0.1"],
-            "root_moment",
+            &["root_moment"],
         ),
         (
             "models/rotating_cantilever.toml",
             vec!["omega=20", "t_end=3"],
-            "root_moment",
+            &["root_moment"],
         ),
-        ("models/flapping_blade.toml", vec!["dt=0.05"], "mid_moment"),
-    ] {
+        (
+            "models/flapping_blade.toml",
+            vec!["dt=0.05"],
+            &["mid_moment"],
+        ),
+        // 10× its step the four-bar's hinge histories are 0.2-0.5 of their range off;
+        // that error is in the rates, so only the velocity part of the estimate sees it
+        // (the two ground hinges turn alike: either may be named)
+        ("models/fourbar.toml", vec!["dt=0.02"], &["g1", "g2"]),
+    ];
+    for (model, sets, sensor) in cases {
         let mut args = vec![model];
         for s in &sets {
             args.extend(["--set", s]);
@@ -92,8 +101,8 @@ fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
         let v = run_json(&args);
         let w = warnings(&v);
         assert!(
-            w.iter()
-                .any(|w| w.contains("time step too large") && w.contains(sensor)),
+            w.iter().any(|w| w.contains("time step too large")
+                && sensor.iter().any(|s| w.contains(&format!("`{s}`")))),
             "{model} {sets:?}: {w:?}"
         );
         assert!(v["time_error_estimate"].as_f64().unwrap() > 1e-2, "{v}");
@@ -126,6 +135,30 @@ fn the_estimate_is_within_a_factor_three_of_the_true_time_error() {
     ]);
     for sensor in ["flap_angle", "mid_moment"] {
         let truth = history_error(&base, &fine, sensor) * 16.0 / 15.0;
+        let est = base["time_error_by_sensor"][sensor].as_f64().unwrap();
+        assert!(
+            est > truth / 3.0 && est < truth * 3.0,
+            "{sensor}: estimate {est:.3e}, true {truth:.3e}"
+        );
+    }
+}
+
+#[test]
+fn the_estimate_of_hinge_rates_is_within_a_factor_three_of_the_true_error() {
+    // The hinge sensors' error at a coarse step is mostly in the rate (the velocity part
+    // of the local error, c_v h³ a″). Truth: the same run at dt/16 (its own error 1/256 of
+    // the base run's). Measured: g1 estimate 0.215 vs 0.312, c1 0.193 vs 0.383; without
+    // the velocity part the estimate was 0.0036, 60× low.
+    let base = run_json(&["models/fourbar.toml", "--set", "v0=0.2", "--set", "dt=0.02"]);
+    let fine = run_json(&[
+        "models/fourbar.toml",
+        "--set",
+        "v0=0.2",
+        "--set",
+        "dt=0.00125",
+    ]);
+    for sensor in ["g1", "c1"] {
+        let truth = history_error(&base, &fine, sensor);
         let est = base["time_error_by_sensor"][sensor].as_f64().unwrap();
         assert!(
             est > truth / 3.0 && est < truth * 3.0,

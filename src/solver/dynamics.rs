@@ -134,6 +134,17 @@ struct TimeError {
     gen0: Vec<f64>,
     /// a sensor's values at the moved state (scratch)
     ym: Vec<f64>,
+    /// some sensor reads velocities (a hinge's rate), so the velocity part of the local
+    /// error is estimated too
+    rates: bool,
+    /// per dof: the estimate of a″ from the last two steps' changes of ã (scratch), and
+    /// the velocity error vector (by equation)
+    w: Vec<f64>,
+    ev: Vec<f64>,
+    /// the last accepted step's `da` and size (0: no usable history, e.g. at the start or
+    /// after a hinge locked)
+    da_prev: Vec<f64>,
+    h_prev: f64,
 }
 
 /// Whether a component's range is large enough to divide by: below 1e-12 of the largest
@@ -184,6 +195,14 @@ impl TimeError {
             da: vec![0.0; model.dofs.len()],
             r0: Vec::new(),
             gen0: Vec::new(),
+            rates: model
+                .sensors
+                .iter()
+                .any(|sn| matches!(sn.kind, crate::model::SensorKind::HingeAngle { .. })),
+            w: vec![0.0; model.dofs.len()],
+            ev: vec![0.0; n_eq],
+            da_prev: vec![0.0; model.dofs.len()],
+            h_prev: 0.0,
         }
     }
 
@@ -491,13 +510,7 @@ impl<'m> Integrator<'m> {
         let model = self.model;
         let p = self.p;
         let cq = p.beta - 1.0 / 6.0 + 0.5 * (p.alpha_m - p.alpha_f);
-        // Stiff components of the error (modes with ωh ≫ 1, e.g. axial ones) do not
-        // accumulate: the implicit step damps them. So the raw estimate e is filtered as
-        // ẽ = S⁻¹ M e with the step's iteration matrix S = M + γ'C + β'K, which leaves
-        // resolved modes alone and divides a mode's share by 1 + β'ω² (Hairer & Wanner's
-        // filter for stiff error estimates). M e is one residual evaluation: the residual
-        // is linear in the accelerations. The perturbation is scaled up to the size of the
-        // accelerations so the difference of residuals keeps its digits.
+        // the raw position error cq h² Δã, filtered (`stiff_filter`)
         for d in 0..model.dofs.len() {
             self.te.da[d] = self.aux[d] - self.aux0[d];
         }
@@ -518,45 +531,42 @@ impl<'m> Integrator<'m> {
                 }
             }
         }
-        let mut amax = 0.0f64;
-        let mut dmax = 0.0f64;
-        for (d, dof) in model.dofs.iter().enumerate() {
-            if dof.eq.is_some() && self.start.is_active(model, d) {
-                amax = amax.max(self.trial.a[d].abs());
-                dmax = dmax.max(self.te.da[d].abs());
+        // The velocity part of the local error is c_v h³ a″ (c_v = 1/12 + (α_m − α_f)(α_f − ½),
+        // checked against the scheme applied to polynomial accelerations); a″ is the
+        // divided difference of this step's and the last step's changes of ã.
+        let cv = 1.0 / 12.0 + (p.alpha_m - p.alpha_f) * (p.alpha_f - 0.5);
+        let with_rates = self.te.rates && self.te.h_prev > 0.0;
+        if with_rates {
+            let hp = self.te.h_prev;
+            for d in 0..model.dofs.len() {
+                self.te.w[d] = (self.te.da[d] / h - self.te.da_prev[d] / hp) * 2.0 / (h + hp);
             }
         }
-        self.te.e.iter_mut().for_each(|x| *x = 0.0);
-        if dmax > 0.0 && dmax.is_finite() {
-            let sigma = (amax / dmax).max(1.0);
-            self.te.moved.clone_from(&self.trial);
-            for (d, dof) in model.dofs.iter().enumerate() {
-                if dof.eq.is_some() && self.start.is_active(model, d) {
-                    self.te.moved.a[d] += sigma * self.te.da[d];
-                }
-            }
-            self.te.r0.clone_from(&self.sys.r);
-            self.te.gen0.clone_from(&self.sys.gen);
-            let cfac = (1.0 - p.alpha_f) / (1.0 - p.alpha_m);
-            let coeffs = Coeffs::dynamic(h * h * p.beta * cfac, h * p.gamma * cfac, 1.0);
-            let ok = self
-                .sys
-                .evaluate(model, &self.asm, &self.te.moved, coeffs, false)
-                .is_ok();
-            if ok {
-                // S⁻¹ (−(−M x)) : solve_neg_residual solves S Δ = −r
-                for (r, r0) in self.sys.r.iter_mut().zip(&self.te.r0) {
-                    *r = -(*r - r0) * cq * h * h / sigma;
-                }
-                if self.sys.solve_neg_residual(&mut self.te.e).is_err() {
-                    self.te.e.iter_mut().for_each(|x| *x = 0.0);
-                }
-            }
-            std::mem::swap(&mut self.sys.r, &mut self.te.r0);
-            std::mem::swap(&mut self.sys.gen, &mut self.te.gen0);
+        self.te.r0.clone_from(&self.sys.r);
+        self.te.gen0.clone_from(&self.sys.gen);
+        let mut e = std::mem::take(&mut self.te.e);
+        self.stiff_filter(h, false, cq * h * h, &mut e);
+        self.te.e = e;
+        let mut ev = std::mem::take(&mut self.te.ev);
+        if with_rates {
+            self.stiff_filter(h, true, cv * h * h * h, &mut ev);
+        } else {
+            ev.iter_mut().for_each(|x| *x = 0.0);
         }
+        self.te.ev = ev;
+        std::mem::swap(&mut self.sys.r, &mut self.te.r0);
+        std::mem::swap(&mut self.sys.gen, &mut self.te.gen0);
         self.te.moved.clone_from(&self.trial);
         joint::apply_increment(model, &mut self.te.moved, &self.te.e);
+        if with_rates {
+            for (d, dof) in model.dofs.iter().enumerate() {
+                if let Some(k) = dof.eq {
+                    if self.start.is_active(model, d) {
+                        self.te.moved.v[d] += self.te.ev[k];
+                    }
+                }
+            }
+        }
         joint::update_kinematics(model, &mut self.te.moved);
         // The buffers keep their inner vectors from step to step: no allocation per step.
         ys.resize_with(model.sensors.len(), Vec::new);
@@ -618,6 +628,55 @@ impl<'m> Integrator<'m> {
         match model.solver.accuracy {
             Some(tol) => worst / (tol * h / model.solver.t_end),
             None => worst,
+        }
+    }
+
+    /// The stiff filter of a local error: out = factor · S⁻¹ M x, x per dof being the
+    /// step's change of ã (`rates` false) or the a″ estimate (`rates` true). Stiff
+    /// components of the error (modes with ωh ≫ 1, e.g. axial ones) do not accumulate:
+    /// the implicit step damps them. S = M + γ'C + β'K is the step's iteration matrix,
+    /// which leaves resolved modes alone and divides a mode's share by 1 + β'ω² (Hairer &
+    /// Wanner's filter for stiff error estimates). M x is one residual evaluation: the
+    /// residual is linear in the accelerations. The perturbation is scaled up to the size
+    /// of the accelerations so the difference of residuals keeps its digits. Expects the
+    /// converged residual in `te.r0`; leaves `sys.r` and `sys.gen` overwritten.
+    fn stiff_filter(&mut self, h: f64, rates: bool, factor: f64, out: &mut [f64]) {
+        let model = self.model;
+        let p = self.p;
+        out.iter_mut().for_each(|x| *x = 0.0);
+        let x = if rates { &self.te.w } else { &self.te.da };
+        let mut amax = 0.0f64;
+        let mut xmax = 0.0f64;
+        for (d, dof) in model.dofs.iter().enumerate() {
+            if dof.eq.is_some() && self.start.is_active(model, d) {
+                amax = amax.max(self.trial.a[d].abs());
+                xmax = xmax.max(x[d].abs());
+            }
+        }
+        if !(xmax > 0.0 && xmax.is_finite()) {
+            return;
+        }
+        let sigma = (amax / xmax).max(1.0);
+        self.te.moved.clone_from(&self.trial);
+        for (d, dof) in model.dofs.iter().enumerate() {
+            if dof.eq.is_some() && self.start.is_active(model, d) {
+                self.te.moved.a[d] += sigma * x[d];
+            }
+        }
+        let cfac = (1.0 - p.alpha_f) / (1.0 - p.alpha_m);
+        let coeffs = Coeffs::dynamic(h * h * p.beta * cfac, h * p.gamma * cfac, 1.0);
+        let ok = self
+            .sys
+            .evaluate(model, &self.asm, &self.te.moved, coeffs, false)
+            .is_ok();
+        if ok {
+            // S⁻¹ (−(−M x)) : solve_neg_residual solves S Δ = −r
+            for (r, r0) in self.sys.r.iter_mut().zip(&self.te.r0) {
+                *r = -(*r - r0) * factor / sigma;
+            }
+            if self.sys.solve_neg_residual(out).is_err() {
+                out.iter_mut().for_each(|x| *x = 0.0);
+            }
         }
     }
 
@@ -872,6 +931,8 @@ impl<'m> Integrator<'m> {
         }
         self.lock_retries = 0;
         self.record_step_error(&ys, &dys);
+        self.te.da_prev.clone_from(&self.te.da);
+        self.te.h_prev = h;
         self.scratch_y = ys;
         self.scratch_dy = dys;
         std::mem::swap(&mut self.s, &mut self.trial);
@@ -944,6 +1005,7 @@ impl<'m> Integrator<'m> {
                 }
                 self.s.locked[ih] = true;
                 self.prev_h = 0.0;
+                self.te.h_prev = 0.0;
                 self.s.v[h.dof] = 0.0;
                 self.s.a[h.dof] = 0.0;
                 self.aux[h.dof] = 0.0;
