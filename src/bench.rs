@@ -35,14 +35,20 @@ pub struct BenchOptions {
 }
 
 /// The problem names, in report order.
-pub const PROBLEMS: [&str; 6] = [
+pub const PROBLEMS: [&str; 8] = [
     "rotating_cantilever",
     "rollup",
     "bend45",
     "spinup",
     "minimast",
+    "time_error",
+    "accuracy",
     "ensemble",
 ];
+
+/// Problems a bare `latdyn bench` leaves out: `accuracy` (the time-error ladder with
+/// `--accuracy` runs) takes about 20 minutes.
+const OPT_IN: [&str; 1] = ["accuracy"];
 
 /// One run of a ladder.
 #[derive(Clone, Debug, Serialize)]
@@ -98,6 +104,41 @@ pub struct ThroughputRow {
     pub max_difference_vs_alone: f64,
 }
 
+/// One run of the time-error ladder, one sensor: the run's estimate beside its true error.
+#[derive(Clone, Debug, Serialize)]
+pub struct TimeErrorRow {
+    /// the shipped scene (file stem)
+    pub scene: String,
+    /// the fixed step, or the first step of a run with an accuracy target [s]
+    pub dt: f64,
+    /// the run's `--accuracy` target (None: fixed step)
+    pub accuracy: Option<f64>,
+    pub wall_s: f64,
+    pub steps: usize,
+    pub sensor: String,
+    /// the run's `time_error_by_sensor` entry
+    pub estimate: f64,
+    /// largest |y − y_ref| over the output samples, relative to the reference's range of
+    /// that component, largest over the components (the measure the estimate reports)
+    pub true_pointwise: f64,
+    /// largest difference of a component's minimum or maximum from the reference's,
+    /// relative to the same range
+    pub true_extremes: f64,
+    /// the run warned that its step was too large
+    pub warned: bool,
+}
+
+/// The reference of one scene's time-error ladder.
+#[derive(Clone, Debug, Serialize)]
+pub struct TimeErrorScene {
+    pub scene: String,
+    pub reference_dt: f64,
+    pub reference_steps: usize,
+    pub reference_wall_s: f64,
+    /// the runs whose Newton iterations failed (step, message); they have no row
+    pub failed: Vec<(f64, String)>,
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchReport {
     pub latdyn_version: String,
@@ -106,6 +147,8 @@ pub struct BenchReport {
     pub wall_s: f64,
     pub problems: Vec<BenchProblem>,
     pub throughput: Vec<ThroughputRow>,
+    pub time_error: Vec<TimeErrorRow>,
+    pub time_error_scenes: Vec<TimeErrorScene>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -130,7 +173,13 @@ pub fn run_suite(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchReport,
             return Err(BenchError::UnknownProblem(p.clone()));
         }
     }
-    let wanted = |p: &str| opts.only.is_empty() || opts.only.iter().any(|o| o == p);
+    let wanted = |p: &str| {
+        if opts.only.is_empty() {
+            !OPT_IN.contains(&p)
+        } else {
+            opts.only.iter().any(|o| o == p)
+        }
+    };
     let t0 = Instant::now();
     let mut problems = Vec::new();
     if wanted("rotating_cantilever") {
@@ -148,6 +197,11 @@ pub fn run_suite(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchReport,
     if wanted("minimast") {
         problems.push(minimast(opts, log)?);
     }
+    let (time_error, time_error_scenes) = if wanted("time_error") || wanted("accuracy") {
+        time_error_ladder(opts, log, wanted("accuracy"))?
+    } else {
+        (Vec::new(), Vec::new())
+    };
     let throughput = if wanted("ensemble") {
         ensemble_throughput(opts, log)?
     } else {
@@ -160,6 +214,8 @@ pub fn run_suite(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchReport,
         wall_s: t0.elapsed().as_secs_f64(),
         problems,
         throughput,
+        time_error,
+        time_error_scenes,
     })
 }
 
@@ -664,6 +720,202 @@ fn minimast(opts: &BenchOptions, log: &dyn Fn(&str)) -> Result<BenchProblem, Ben
 }
 
 // ---------------------------------------------------------------------------------------
+// Time-error ladder: the estimate beside the true error
+
+/// Per sensor: the largest pointwise difference and the largest difference of the
+/// extremes, each relative to the reference's range of the component, largest over the
+/// components (components the reference holds constant are skipped). Compared at the
+/// run's output times that the reference also sampled (a scene without `output_dt`
+/// samples every step, so the reference's grid is finer).
+fn history_errors(
+    t: &[f64],
+    run: &[Vec<Vec<f64>>],
+    t_ref: &[f64],
+    reference: &[Vec<Vec<f64>>],
+) -> Vec<(f64, f64)> {
+    let pairs: Vec<(usize, usize)> = t
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &ti)| {
+            let j = t_ref.partition_point(|x| *x < ti - 1e-9 * ti.abs().max(1.0));
+            (j < t_ref.len() && (t_ref[j] - ti).abs() <= 1e-9 * ti.abs().max(1.0)).then_some((i, j))
+        })
+        .collect();
+    run.iter()
+        .zip(reference)
+        .map(|(a, b)| {
+            let nc = b.first().map_or(0, |v| v.len());
+            if pairs.is_empty() || a.iter().any(|v| v.len() != nc) {
+                return (f64::NAN, f64::NAN);
+            }
+            let mut worst = (0.0f64, 0.0f64);
+            for c in 0..nc {
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                let (mut alo, mut ahi) = (f64::INFINITY, f64::NEG_INFINITY);
+                let mut pw = 0.0f64;
+                for &(i, j) in &pairs {
+                    let (x, y) = (a[i][c], b[j][c]);
+                    lo = lo.min(y);
+                    hi = hi.max(y);
+                    alo = alo.min(x);
+                    ahi = ahi.max(x);
+                    pw = pw.max((x - y).abs());
+                }
+                let range = hi - lo;
+                if !(range > 0.0 && range.is_finite()) {
+                    continue;
+                }
+                worst.0 = worst.0.max(pw / range);
+                worst.1 = worst.1.max((alo - lo).abs().max((ahi - hi).abs()) / range);
+            }
+            worst
+        })
+        .collect()
+}
+
+/// `--accuracy` targets of the time-error ladder (problem `accuracy`).
+const ACCURACY_TARGETS: [f64; 1] = [1e-2];
+
+/// The four scenes of issue 14 at their shipped mesh: fixed steps from 8× to 1/4 of the
+/// shipped step (1/2 with `--quick`; none longer than the output interval, which would
+/// cut it) and, with `with_accuracy`, `--accuracy` runs from the largest of them, each against the same scene at
+/// 1/16 of the shipped step (1/4 with `--quick`), whose own error is 1/16 of the finest
+/// rung's at second order.
+#[allow(clippy::type_complexity)]
+fn time_error_ladder(
+    opts: &BenchOptions,
+    log: &dyn Fn(&str),
+    with_accuracy: bool,
+) -> Result<(Vec<TimeErrorRow>, Vec<TimeErrorScene>), BenchError> {
+    const SCENES: [(&str, &[&str]); 4] = [
+        ("rotating_cantilever", &["tip_flap", "root_moment"]),
+        ("spinup_beam", &["tip_deflection"]),
+        ("flapping_blade", &["flap_angle", "tip", "mid_moment"]),
+        (
+            "minimast_bay",
+            &[
+                "longeron_rotation",
+                "longeron_mid",
+                "diagonal_mid_hinge",
+                "upper_z",
+            ],
+        ),
+    ];
+    let problem = "time_error";
+    let factors: &[f64] = if opts.quick {
+        &[4.0, 2.0, 1.0, 0.5]
+    } else {
+        &[8.0, 4.0, 2.0, 1.0, 0.5, 0.25]
+    };
+    let ref_factor = if opts.quick { 0.25 } else { 1.0 / 16.0 };
+    let mut rows = Vec::new();
+    let mut scenes = Vec::new();
+    for (scene, sensors) in SCENES {
+        let file = format!("{scene}.toml");
+        let shipped = model(opts, problem, &file, &[])?;
+        let dt0 = shipped.solver.dt;
+        let run_at =
+            |dt: f64,
+             accuracy: Option<f64>|
+             -> Result<(Model, dynamics::History, dynamics::RunStats, f64), String> {
+                let t0 = Instant::now();
+                let mut m =
+                    model(opts, problem, &file, &[("dt", dt)]).map_err(|e| e.to_string())?;
+                m.solver.accuracy = accuracy;
+                let (h, stats, err) = dynamics::run(&m, |_, _| {});
+                if let Some(e) = err {
+                    return Err(e.to_string());
+                }
+                Ok((m, h, stats, t0.elapsed().as_secs_f64()))
+            };
+        let (m_ref, h_ref, st_ref, wall_ref) = run_at(dt0 * ref_factor, None)
+            .map_err(|e| run_err(problem, format!("{scene}: {e}")))?;
+        log(&format!(
+            "time_error: {scene}: reference dt {}, {} steps, {wall_ref:.1} s",
+            dt0 * ref_factor,
+            st_ref.steps
+        ));
+        let idx: Vec<usize> = sensors
+            .iter()
+            .map(|n| {
+                m_ref
+                    .sensor_index(n)
+                    .ok_or_else(|| run_err(problem, format!("{scene} has no sensor '{n}'")))
+            })
+            .collect::<Result<_, _>>()?;
+        let mut failed = Vec::new();
+        // a step longer than the output interval is cut to it: such rungs would repeat
+        let out_dt = shipped.solver.output_dt;
+        let mut cases: Vec<(f64, Option<f64>)> = factors
+            .iter()
+            .map(|f| f * dt0)
+            .filter(|dt| out_dt <= 0.0 || *dt <= out_dt * (1.0 + 1e-9))
+            .map(|dt| (dt, None))
+            .collect();
+        let largest = cases.first().map_or(dt0, |c| c.0);
+        // (minutes each where a sensor carries many modes: only when asked for)
+        let targets: &[f64] = if with_accuracy {
+            &ACCURACY_TARGETS
+        } else {
+            &[]
+        };
+        for &tol in targets {
+            cases.push((largest, Some(tol)));
+        }
+        for (dt, accuracy) in cases {
+            match run_at(dt, accuracy) {
+                Err(e) => {
+                    log(&format!("time_error: {scene} dt {dt}: failed: {e}"));
+                    failed.push((dt, e));
+                }
+                Ok((_, h, st, wall)) => {
+                    let sel = |hist: &dynamics::History| -> Vec<Vec<Vec<f64>>> {
+                        idx.iter().map(|&k| hist.values[k].clone()).collect()
+                    };
+                    let errs = history_errors(&h.t, &sel(&h), &h_ref.t, &sel(&h_ref));
+                    let warned = st
+                        .warnings()
+                        .iter()
+                        .any(|w| w.contains("time step too large"));
+                    let mut line = format!(
+                        "time_error: {scene} dt {dt}{}: {} steps, {wall:.2} s",
+                        accuracy.map_or(String::new(), |a| format!(" accuracy {a}")),
+                        st.steps
+                    );
+                    for ((&k, name), (pw, ex)) in idx.iter().zip(sensors).zip(errs) {
+                        let est = st.time_error_by_sensor.get(k).copied().unwrap_or(f64::NAN);
+                        line.push_str(&format!(
+                            " | {name}: est {est:.2e} true {pw:.2e} ext {ex:.2e}"
+                        ));
+                        rows.push(TimeErrorRow {
+                            scene: scene.into(),
+                            dt,
+                            accuracy,
+                            wall_s: wall,
+                            steps: st.steps,
+                            sensor: (*name).into(),
+                            estimate: est,
+                            true_pointwise: pw,
+                            true_extremes: ex,
+                            warned,
+                        });
+                    }
+                    log(&line);
+                }
+            }
+        }
+        scenes.push(TimeErrorScene {
+            scene: scene.into(),
+            reference_dt: dt0 * ref_factor,
+            reference_steps: st_ref.steps,
+            reference_wall_s: wall_ref,
+            failed,
+        });
+    }
+    Ok((rows, scenes))
+}
+
+// ---------------------------------------------------------------------------------------
 // Ensemble throughput
 
 fn blade_campaign(
@@ -821,6 +1073,9 @@ pub fn markdown(r: &BenchReport, command: &str, plot_file: Option<&str>) -> Stri
         }
         s.push('\n');
     }
+    if !r.time_error.is_empty() {
+        s.push_str(&time_error_markdown(r));
+    }
     if !r.throughput.is_empty() {
         s.push_str("## Ensemble throughput: flapping-blade campaign\n\n");
         s.push_str(
@@ -848,6 +1103,99 @@ pub fn markdown(r: &BenchReport, command: &str, plot_file: Option<&str>) -> Stri
             ));
         }
         s.push('\n');
+    }
+    s
+}
+
+/// The time-error ladder's tables: per scene, each run's estimate beside its true error,
+/// then the cost of `--accuracy` against the cheapest fixed step that meets the same error.
+fn time_error_markdown(r: &BenchReport) -> String {
+    let mut s = String::from("## Time-error estimate against the true error\n\n");
+    s.push_str(
+        "Each scene at its shipped mesh, fixed steps around the shipped one and `--accuracy` \
+         runs starting from the largest, against the same scene at a step 16 times below the \
+         shipped one (4 with `--quick`). est: the run's `time_error_by_sensor`; pointwise: \
+         the largest |y − y_ref| on the output grid over the reference's range (per \
+         component, largest over the components, the measure the estimate reports); \
+         extremes: the same for the components' minima and maxima; ratio = est / \
+         pointwise (the estimate's bar: within a factor 3).\n\n",
+    );
+    for sc in &r.time_error_scenes {
+        s.push_str(&format!(
+            "### {}\n\nReference: dt = {} s, {} steps, {:.1} s.{}\n\n",
+            sc.scene,
+            crate::plot::fmt_num(sc.reference_dt),
+            sc.reference_steps,
+            sc.reference_wall_s,
+            sc.failed
+                .iter()
+                .map(|(dt, e)| format!(" Failed at dt = {}: {e}.", crate::plot::fmt_num(*dt)))
+                .collect::<String>()
+        ));
+        s.push_str("| dt [s] | accuracy | steps | wall [s] | sensor | est | pointwise | extremes | ratio | warns |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+        for row in r.time_error.iter().filter(|x| x.scene == sc.scene) {
+            s.push_str(&format!(
+                "| {} | {} | {} | {:.3} | {} | {:.2e} | {:.2e} | {:.2e} | {:.2} | {} |\n",
+                crate::plot::fmt_num(row.dt),
+                row.accuracy.map_or("—".into(), |a| format!("{a:e}")),
+                row.steps,
+                row.wall_s,
+                row.sensor,
+                row.estimate,
+                row.true_pointwise,
+                row.true_extremes,
+                row.estimate / row.true_pointwise,
+                if row.warned { "⚠" } else { "" }
+            ));
+        }
+        s.push('\n');
+        // the cost of an accuracy target against the cheapest fixed step meeting it
+        for tol in ACCURACY_TARGETS {
+            let worst = |rows: &[&TimeErrorRow]| {
+                rows.iter().map(|x| x.true_pointwise).fold(0.0f64, f64::max)
+            };
+            let by_run = |acc: Option<f64>| {
+                let mut runs: Vec<(f64, f64, usize, Vec<&TimeErrorRow>)> = Vec::new();
+                for row in r
+                    .time_error
+                    .iter()
+                    .filter(|x| x.scene == sc.scene && x.accuracy == acc)
+                {
+                    match runs.iter_mut().find(|x| x.0 == row.dt) {
+                        Some(x) => x.3.push(row),
+                        None => runs.push((row.dt, row.wall_s, row.steps, vec![row])),
+                    }
+                }
+                runs
+            };
+            let Some(acc_run) = by_run(Some(tol)).into_iter().next() else {
+                continue;
+            };
+            let acc_err = worst(&acc_run.3);
+            let cheapest = by_run(None)
+                .into_iter()
+                .filter(|x| worst(&x.3) <= tol)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            s.push_str(&format!(
+                "`--accuracy {tol:e}`: largest pointwise error {acc_err:.2e} ({}), {} steps, \
+                 {:.3} s; ",
+                if acc_err <= tol { "met" } else { "NOT met" },
+                acc_run.2,
+                acc_run.1
+            ));
+            match cheapest {
+                Some(f) => s.push_str(&format!(
+                    "cheapest fixed step meeting {tol:e}: dt = {} s, {} steps, {:.3} s; cost \
+                     ratio {:.2}.\n\n",
+                    crate::plot::fmt_num(f.0),
+                    f.2,
+                    f.1,
+                    acc_run.1 / f.1
+                )),
+                None => s.push_str(&format!("no fixed step of the ladder meets {tol:e}.\n\n")),
+            }
+        }
     }
     s
 }
