@@ -611,7 +611,12 @@ pub fn run_verified_to(
                 time: p.time.clone(),
                 sensors: first.map(SensorMeta::of_model).unwrap_or_default(),
             };
-            Some(Mutex::new(CampaignWriter::create_at(target, &meta)?))
+            let info = identify(c, p, stage)?;
+            Some(Mutex::new(CampaignWriter::create_with(
+                target,
+                &meta,
+                Some(info),
+            )?))
         }
         None => None,
     };
@@ -819,6 +824,30 @@ pub fn run_verified_to(
         output_error,
         verification,
     })
+}
+
+/// The identity of campaign `c` (see [`crate::campaign`]): the same for every shard of
+/// it, whatever the thread count.
+pub fn identify(
+    c: &Campaign,
+    p: &Prepared,
+    stage: &Stage,
+) -> Result<crate::campaign::CampaignInfo, EnsembleError> {
+    let first = p.models.first().or(p.reference.as_ref());
+    let sensors = first.map(SensorMeta::of_model).unwrap_or_default();
+    crate::campaign::identify(&crate::campaign::DefinitionInput {
+        model_path: &c.model_path,
+        model_source: first.map(|m| m.source.as_str()).unwrap_or_default(),
+        set: &c.base,
+        variants: &c.variants,
+        time: &p.time,
+        sensors: &sensors,
+        accuracy: c.accuracy,
+        frequency: c.frequency_sensor.as_ref(),
+        backend: &stage.backend,
+        precision: &stage.precision,
+    })
+    .map_err(EnsembleError::Invalid)
 }
 
 /// The outcome of a variant not started because the output had already failed.

@@ -45,6 +45,18 @@
 //! /derived/<NAME>          float64 [V], NaN where not set (only names ever set exist)
 //! ```
 //!
+//! A sweep (every shard of it) also records its campaign's identity (see
+//! [`crate::campaign`]; `N` = variants of the whole campaign, `Q` = varied parameters,
+//! `S` = `--set` values):
+//!
+//! ```text
+//! /                        attrs: campaign_id (str), campaign_hash (str: SHA-256 hex)
+//! /campaign/definition     str (scalar): the JSON object the hash is taken of
+//! /campaign/varied         str [Q]: names of the varied parameters
+//! /campaign/variants       float64 [N, Q]: their values, per global index
+//! /campaign/set_names      str [S], /campaign/set_values float64 [S]: the --set values
+//! ```
+//!
 //! A campaign run with `sweep --verify K` also has (README "Discretisation error of a
 //! campaign"; `K` =
 //! variants verified, `W` = warnings):
@@ -604,6 +616,8 @@ pub struct CampaignWriter {
     dirty: bool,
     /// `/verification`, once set
     verification: Option<VerificationData>,
+    /// `/campaign` and the root attributes `campaign_id`, `campaign_hash` (sweeps)
+    campaign: Option<crate::campaign::CampaignInfo>,
 }
 
 /// Whether `name` can name a sensor or derived quantity in every output format: an HDF5
@@ -651,6 +665,16 @@ impl CampaignWriter {
 
     /// [`create`](Self::create) on a path claimed earlier (before slow preparations).
     pub fn create_at(target: OutputTarget, meta: &CampaignMeta) -> Result<Self, OutputError> {
+        Self::create_with(target, meta, None)
+    }
+
+    /// [`create_at`](Self::create_at) for a campaign with an identity (a sweep): the
+    /// first file written already carries `campaign_id`, `campaign_hash` and `/campaign`.
+    pub fn create_with(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+    ) -> Result<Self, OutputError> {
         let n_variants = meta.parameter_values.len();
         let n_time = meta.time.len();
         for (v, row) in meta.parameter_values.iter().enumerate() {
@@ -728,6 +752,7 @@ impl CampaignWriter {
             pipeline: FilterPipeline::shuffle_deflate(8, DEFLATE_LEVEL),
             dirty: true,
             verification: None,
+            campaign,
         };
         w.flush()?;
         Ok(w)
@@ -1116,8 +1141,39 @@ impl CampaignWriter {
             write_verification(file, v, h5)?;
         }
 
+        if let Some(c) = &self.campaign {
+            write_campaign(file, c, h5)?;
+        }
+
         Ok(())
     }
+}
+
+/// `campaign_id`, `campaign_hash` and `/campaign` (see the layout in the module docs).
+fn write_campaign<E>(
+    file: &H5File,
+    c: &crate::campaign::CampaignInfo,
+    h5: &E,
+) -> Result<(), OutputError>
+where
+    E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
+{
+    file.set_attr_string("campaign_id", &c.id)
+        .map_err(h5("root attrs"))?;
+    file.set_attr_string("campaign_hash", &c.hash)
+        .map_err(h5("root attrs"))?;
+    let g = file.create_group("campaign").map_err(h5("/campaign"))?;
+    write_scalar_string(&g, "definition", &c.definition).map_err(h5("/campaign/definition"))?;
+    let varied: Vec<&str> = c.varied.iter().map(String::as_str).collect();
+    write_strings(&g, "varied", &varied).map_err(h5("/campaign/varied"))?;
+    let values: Vec<f64> = c.variants.iter().flatten().copied().collect();
+    write_f64(&g, "variants", &[c.variants.len(), varied.len()], &values)
+        .map_err(h5("/campaign/variants"))?;
+    let names: Vec<&str> = c.set.iter().map(|(n, _)| n.as_str()).collect();
+    write_strings(&g, "set_names", &names).map_err(h5("/campaign/set_names"))?;
+    let values: Vec<f64> = c.set.iter().map(|(_, x)| *x).collect();
+    write_f64(&g, "set_values", &[values.len()], &values).map_err(h5("/campaign/set_values"))?;
+    Ok(())
 }
 
 /// `/verification` (see the layout in the module docs).
