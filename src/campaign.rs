@@ -14,11 +14,15 @@
 //! nodes, with different thread counts or mount points, agree on the campaign without
 //! talking to each other.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use rust_hdf5::{H5Dataset, H5File};
 use sha2::{Digest, Sha256};
 
-use crate::output::SensorMeta;
+use crate::output::{
+    CampaignMeta, CampaignWriter, OutputError, OutputTarget, SensorMeta, VariantState,
+    VariantStatus,
+};
 
 /// A campaign's identity and the variant table it was defined with (stored under
 /// `/campaign` and in the root attributes `campaign_id`, `campaign_hash`).
@@ -166,6 +170,546 @@ pub fn differences(a: &str, b: &str) -> Vec<String> {
             format!("{k}: {} vs {}", show(a.get(k)), show(b.get(k)))
         })
         .collect()
+}
+
+/// A campaign file as `merge` and `sweep --resume` read it: its identity and the small
+/// per-variant datasets (the sensor samples stay on disk).
+pub struct CampaignFile {
+    pub path: PathBuf,
+    pub file: H5File,
+    pub info: CampaignInfo,
+    pub model_source: String,
+    pub model_path: String,
+    pub backend: String,
+    pub precision: String,
+    pub adapter: String,
+    pub parameter_names: Vec<String>,
+    /// [V][P]
+    pub parameter_values: Vec<Vec<f64>>,
+    pub time: Vec<f64>,
+    pub global_index: Vec<usize>,
+    pub status: Vec<VariantStatus>,
+    pub derived: Vec<(String, Vec<f64>)>,
+    /// the file has `/verification` (`sweep --verify`)
+    pub has_verification: bool,
+}
+
+/// Why a file could not be read as a campaign file (path and reason).
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {message}", path.display())]
+pub struct ReadError {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+fn text(bytes: Vec<u8>) -> String {
+    String::from_utf8_lossy(&bytes)
+        .trim_end_matches('\0')
+        .to_string()
+}
+
+impl CampaignFile {
+    /// Open a sweep or shard file and read its identity and per-variant status. Files
+    /// without `campaign_hash` (written by `run`, `statics --path`, `sweep --path` or a
+    /// latdyn before campaign identities) are refused with that reason.
+    pub fn open(path: &Path) -> Result<CampaignFile, ReadError> {
+        let err = |message: String| ReadError {
+            path: path.to_path_buf(),
+            message,
+        };
+        if !path.is_file() {
+            return Err(err("no such file".into()));
+        }
+        let file =
+            H5File::open(path).map_err(|e| err(format!("not a readable HDF5 file ({e})")))?;
+        if file.attr_string("format").ok().as_deref() != Some("latdyn-campaign") {
+            return Err(err(
+                "not a latdyn campaign file (no root attribute format = \
+                            \"latdyn-campaign\")"
+                    .into(),
+            ));
+        }
+        let hash = file.attr_string("campaign_hash").map_err(|_| {
+            err(
+                "has no campaign identity (root attribute campaign_hash): only `sweep` files \
+                 written by this latdyn version or later have one; rerun the sweep"
+                    .into(),
+            )
+        })?;
+        let id = file.attr_string("campaign_id").unwrap_or_default();
+        let ds = |name: &str| {
+            file.dataset(name)
+                .map_err(|e| err(format!("no /{name} ({e})")))
+        };
+        let f64s = |name: &str| -> Result<Vec<f64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_raw::<f64>()
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        let i64s = |name: &str| -> Result<Vec<i64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_numeric_as::<i64>()
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        let strings = |name: &str| -> Result<Vec<String>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_strings()
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        let scalar_text = |name: &str| -> Result<String, ReadError> {
+            ds(name)?
+                .read_raw_bytes()
+                .map(text)
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        let definition = scalar_text("campaign/definition")?;
+        let varied = strings("campaign/varied")?;
+        let table = f64s("campaign/variants")?;
+        let n_total = ds("campaign/variants")?
+            .shape()
+            .first()
+            .copied()
+            .unwrap_or(0);
+        let variants: Vec<Vec<f64>> = if varied.is_empty() {
+            vec![Vec::new(); n_total]
+        } else {
+            table.chunks(varied.len()).map(<[f64]>::to_vec).collect()
+        };
+        let set: Vec<(String, f64)> = strings("campaign/set_names")?
+            .into_iter()
+            .zip(f64s("campaign/set_values")?)
+            .collect();
+        let parameter_names = strings("parameters/names")?;
+        let values = f64s("parameters/values")?;
+        let global_index: Vec<usize> = i64s("status/global_index")?
+            .into_iter()
+            .map(|g| usize::try_from(g).unwrap_or(usize::MAX))
+            .collect();
+        let nv = global_index.len();
+        let parameter_values: Vec<Vec<f64>> = if parameter_names.is_empty() {
+            vec![Vec::new(); nv]
+        } else {
+            values
+                .chunks(parameter_names.len())
+                .map(<[f64]>::to_vec)
+                .collect()
+        };
+        if parameter_values.len() != nv {
+            return Err(err(format!(
+                "/parameters/values has {} rows for {nv} variants",
+                parameter_values.len()
+            )));
+        }
+        if let Some(g) = global_index.iter().find(|&&g| g >= n_total) {
+            return Err(err(format!(
+                "global index {g} outside the campaign's {n_total} variants"
+            )));
+        }
+        let col = |name: &str| -> Result<Vec<f64>, ReadError> {
+            let v = f64s(name)?;
+            if v.len() != nv {
+                return Err(err(format!(
+                    "/{name} has {} entries for {nv} variants",
+                    v.len()
+                )));
+            }
+            Ok(v)
+        };
+        let state = i64s("status/state")?;
+        let message = strings("status/message")?;
+        let warnings = strings("status/warnings")?;
+        let steps = i64s("status/steps")?;
+        let rejected = i64s("status/rejected_steps")?;
+        let (t_fail, wall_s) = (col("status/t_fail")?, col("status/wall_s")?);
+        let (growth, loss) = (col("status/energy_growth")?, col("status/energy_loss")?);
+        let tee = col("status/time_error_estimate")?;
+        if [
+            state.len(),
+            message.len(),
+            warnings.len(),
+            steps.len(),
+            rejected.len(),
+        ]
+        .iter()
+        .any(|&n| n != nv)
+        {
+            return Err(err(format!(
+                "/status datasets do not all have {nv} entries"
+            )));
+        }
+        let mut status = Vec::with_capacity(nv);
+        for v in 0..nv {
+            status.push(VariantStatus {
+                state: VariantState::from_code(state[v])
+                    .ok_or_else(|| err(format!("/status/state[{v}] = {} is no state", state[v])))?,
+                message: message[v].clone(),
+                t_fail: t_fail[v],
+                steps: u64::try_from(steps[v]).unwrap_or(0),
+                rejected_steps: u64::try_from(rejected[v]).unwrap_or(0),
+                wall_s: wall_s[v],
+                energy_growth: growth[v],
+                energy_loss: loss[v],
+                time_error_estimate: tee[v],
+                warnings: warnings[v].clone(),
+            });
+        }
+        let root = file.root_group();
+        let mut derived = Vec::new();
+        if let Ok(g) = root.group("derived") {
+            let mut names = g.dataset_names().unwrap_or_default();
+            names.sort();
+            for n in names {
+                derived.push((n.clone(), col(&format!("derived/{n}"))?));
+            }
+        }
+        let has_verification = root.group("verification").is_ok();
+        Ok(CampaignFile {
+            path: path.to_path_buf(),
+            info: CampaignInfo {
+                id,
+                hash,
+                definition,
+                varied,
+                variants,
+                set,
+            },
+            model_source: scalar_text("model/source")?,
+            model_path: scalar_text("model/path")?,
+            backend: file.attr_string("backend").unwrap_or_default(),
+            precision: file.attr_string("precision").unwrap_or_default(),
+            adapter: file.attr_string("adapter").unwrap_or_default(),
+            parameter_names,
+            parameter_values,
+            time: f64s("time")?,
+            global_index,
+            status,
+            derived,
+            has_verification,
+            file,
+        })
+    }
+
+    /// The `/sensors/<name>` dataset.
+    pub fn sensor(&self, name: &str) -> Result<H5Dataset, ReadError> {
+        self.file
+            .dataset(&format!("sensors/{name}"))
+            .map_err(|e| ReadError {
+                path: self.path.clone(),
+                message: format!("no /sensors/{name} ({e})"),
+            })
+    }
+
+    /// The variants of the whole campaign.
+    pub fn n_total(&self) -> usize {
+        self.info.variants.len()
+    }
+}
+
+/// What `merge` found (printed by `merge --json`). Indices are global (0-based, as
+/// `--shard` writes them).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct MergeReport {
+    pub campaign_id: String,
+    pub campaign_hash: String,
+    /// variants of the whole campaign
+    pub variants: usize,
+    pub completed: usize,
+    /// in no shard, or never started in its shard (state pending)
+    pub missing: Vec<usize>,
+    pub failed: Vec<usize>,
+    /// stopped by a signal (state interrupted), or started in a shard that was killed
+    /// (state running)
+    pub interrupted: Vec<usize>,
+    /// held by more than one shard (the merge is refused)
+    pub duplicated: Vec<usize>,
+    /// what `sweep --resume` on the merged file runs: missing, failed and interrupted
+    pub to_resume: Vec<usize>,
+    pub shards: Vec<ShardReport>,
+    /// shards with `/verification` (`sweep --verify`), which the merged file does not
+    /// carry over
+    pub verification_not_merged: Vec<String>,
+    pub output: String,
+    /// "complete" (every variant completed or failed), "incomplete" or "refused"
+    pub status: String,
+    pub message: String,
+    pub wall_s: f64,
+}
+
+/// One input of a merge.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ShardReport {
+    pub path: String,
+    pub variants: usize,
+    pub completed: usize,
+}
+
+/// Why a merge refused to write.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    #[error("{0}")]
+    Refused(String),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+/// Merge the shard files `inputs` of one campaign into `target` (see README "Campaigns
+/// on a cluster"): every input must carry the same `campaign_hash`, and no global index
+/// may be in two of them. The merged file has the layout of a single-process sweep of
+/// the whole campaign (one row per global index, in order): the sensor chunks are copied
+/// as stored (compressed bytes, no decoding), so the samples are bit for bit the shards';
+/// a variant in no shard is pending with NaN samples and its parameter values compiled
+/// from the stored model text. Memory: the per-variant status of the campaign and one
+/// chunk (≤ 512 KiB) of samples. `report` is filled as far as the merge got, also when it
+/// is refused.
+pub fn merge(
+    inputs: &[PathBuf],
+    target: OutputTarget,
+    command_line: &str,
+    report: &mut MergeReport,
+) -> Result<(), MergeError> {
+    let t0 = std::time::Instant::now();
+    report.output = target.path().display().to_string();
+    if inputs.is_empty() {
+        return Err(MergeError::Refused("merge: no shard files given".into()));
+    }
+    // pass 1: identities and indices, one file open at a time
+    let mut owner: Vec<Option<(usize, usize)>> = Vec::new();
+    let mut first: Option<CampaignFile> = None;
+    let mut duplicated = Vec::new();
+    for (k, p) in inputs.iter().enumerate() {
+        let f = CampaignFile::open(p)?;
+        match &first {
+            None => {
+                report.campaign_id = f.info.id.clone();
+                report.campaign_hash = f.info.hash.clone();
+                report.variants = f.n_total();
+                owner = vec![None; f.n_total()];
+            }
+            Some(f0) if f0.info.hash != f.info.hash => {
+                let diff = differences(&f0.info.definition, &f.info.definition);
+                return Err(MergeError::Refused(format!(
+                    "{} belongs to another campaign than {} (campaign {} vs {}){}",
+                    p.display(),
+                    f0.path.display(),
+                    f.info.id,
+                    f0.info.id,
+                    if diff.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; what differs: {}", diff.join("; "))
+                    }
+                )));
+            }
+            Some(_) => {}
+        }
+        let mut completed = 0;
+        for (row, &g) in f.global_index.iter().enumerate() {
+            if owner[g].is_some() {
+                duplicated.push(g);
+            }
+            owner[g] = Some((k, row));
+            completed += usize::from(f.status[row].state == VariantState::Completed);
+        }
+        report.shards.push(ShardReport {
+            path: p.display().to_string(),
+            variants: f.global_index.len(),
+            completed,
+        });
+        if f.has_verification {
+            report.verification_not_merged.push(p.display().to_string());
+        }
+        if first.is_none() {
+            first = Some(f);
+        }
+    }
+    let first = first.expect("at least one input");
+    if !duplicated.is_empty() {
+        duplicated.sort_unstable();
+        duplicated.dedup();
+        report.duplicated = duplicated.clone();
+        return Err(MergeError::Refused(format!(
+            "{} global indices are in more than one shard ({}{}): each variant must come from \
+             one shard only; leave out the repeated file",
+            duplicated.len(),
+            duplicated
+                .iter()
+                .take(20)
+                .map(|g| g.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            if duplicated.len() > 20 { ", …" } else { "" }
+        )));
+    }
+    let n = first.n_total();
+    let np = first.parameter_names.len();
+    // rows in no shard: parameters from the stored model text, as the sweep compiled them
+    let mut parameter_values = vec![vec![f64::NAN; np]; n];
+    let mut status = vec![VariantStatus::default(); n];
+    let mut derived: Vec<(String, Vec<f64>)> = Vec::new();
+    for (k, p) in inputs.iter().enumerate() {
+        let f = if k == 0 {
+            None
+        } else {
+            Some(CampaignFile::open(p)?)
+        };
+        let f = f.as_ref().unwrap_or(&first);
+        for (row, &g) in f.global_index.iter().enumerate() {
+            parameter_values[g] = f.parameter_values[row].clone();
+            status[g] = f.status[row].clone();
+        }
+        for (name, col) in &f.derived {
+            let i = match derived.iter().position(|(d, _)| d == name) {
+                Some(i) => i,
+                None => {
+                    derived.push((name.clone(), vec![f64::NAN; n]));
+                    derived.len() - 1
+                }
+            };
+            for (row, &g) in f.global_index.iter().enumerate() {
+                derived[i].1[g] = col[row];
+            }
+        }
+    }
+    for g in 0..n {
+        if owner[g].is_none() {
+            let mut sets = first.info.set.clone();
+            sets.extend(
+                first
+                    .info
+                    .varied
+                    .iter()
+                    .cloned()
+                    .zip(first.info.variants[g].iter().copied()),
+            );
+            if let Ok(m) = crate::model::compile_str(&first.model_source, &first.model_path, &sets)
+            {
+                if m.params.len() == np {
+                    parameter_values[g] = m.params.iter().map(|(_, v)| *v).collect();
+                }
+            }
+        }
+    }
+    for (g, st) in status.iter().enumerate() {
+        match (owner[g], st.state) {
+            (None, _) | (_, VariantState::Pending) => report.missing.push(g),
+            (_, VariantState::Completed) => report.completed += 1,
+            (_, VariantState::Failed) => report.failed.push(g),
+            (_, VariantState::Interrupted | VariantState::Running) => report.interrupted.push(g),
+        }
+    }
+    report.to_resume = (0..n)
+        .filter(|&g| status[g].state != VariantState::Completed || owner[g].is_none())
+        .collect();
+    let incomplete = !report.missing.is_empty() || !report.interrupted.is_empty();
+    // the sensors and their components/units as the model defines them (the hash says
+    // every shard has the same)
+    let sensors = {
+        let mut sets = first.info.set.clone();
+        if let Some(row) = first.info.variants.first() {
+            sets.extend(first.info.varied.iter().cloned().zip(row.iter().copied()));
+        }
+        let m = crate::model::compile_str(&first.model_source, &first.model_path, &sets).map_err(
+            |e| {
+                MergeError::Refused(format!(
+                    "{}: the stored model does not compile: {e}",
+                    first.path.display()
+                ))
+            },
+        )?;
+        SensorMeta::of_model(&m)
+    };
+    let meta = CampaignMeta {
+        command_line: command_line.to_string(),
+        model_path: first.model_path.clone(),
+        model_source: first.model_source.clone(),
+        backend: first.backend.clone(),
+        precision: first.precision.clone(),
+        adapter: first.adapter.clone(),
+        threads: 0,
+        parameter_names: first.parameter_names.clone(),
+        parameter_values,
+        global_index: (0..n).collect(),
+        time: first.time.clone(),
+        sensors: sensors.clone(),
+    };
+    let info = first.info.clone();
+    drop(first);
+    let mut fill = |out: &[H5Dataset]| -> Result<(), OutputError> {
+        let bad = |p: &Path, m: String| OutputError::Invalid(format!("{}: {m}", p.display()));
+        for p in inputs {
+            let f = CampaignFile::open(p).map_err(|e| bad(p, e.message))?;
+            for (s, ds) in sensors.iter().zip(out) {
+                let src = f.sensor(&s.name).map_err(|e| bad(p, e.message))?;
+                let rows = f.global_index.len();
+                if rows == 0 {
+                    continue;
+                }
+                let n_time = ds.shape()[1];
+                let nc = s.components.len();
+                let chunk_t = crate::output::chunk_times(nc, n_time);
+                let (cs, co) = (src.chunk_dims(), Some(vec![1, chunk_t, nc]));
+                if cs != co || src.shape()[1..] != ds.shape()[1..] {
+                    return Err(bad(
+                        p,
+                        format!(
+                            "/sensors/{}: shape {:?} chunks {cs:?}, the merged file has {:?} \
+                             chunks {co:?}",
+                            s.name,
+                            src.shape(),
+                            ds.shape(),
+                        ),
+                    ));
+                }
+                let chunks_t = n_time.div_ceil(chunk_t);
+                for (row, &g) in f.global_index.iter().enumerate() {
+                    for ct in 0..chunks_t {
+                        // a chunk never written (a variant that never ran) is absent in
+                        // the shard and stays absent (reads NaN) in the merged file
+                        let (bytes, mask) = match src.read_chunk_raw_at(&[row, ct, 0]) {
+                            Ok(x) => x,
+                            Err(e) if e.to_string().contains("has not been written") => continue,
+                            Err(e) => {
+                                return Err(bad(
+                                    p,
+                                    format!("reading /sensors/{} chunk {row},{ct}: {e}", s.name),
+                                ))
+                            }
+                        };
+                        ds.write_chunk_raw_at(&[g, ct, 0], &bytes, mask)
+                            .map_err(|e| bad(p, format!("copying /sensors/{}: {e}", s.name)))?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    };
+    CampaignWriter::write_streamed(
+        target,
+        &meta,
+        Some(info),
+        status,
+        derived,
+        if incomplete {
+            "interrupted"
+        } else {
+            "complete"
+        },
+        &mut fill,
+    )?;
+    report.status = if incomplete { "incomplete" } else { "complete" }.into();
+    report.wall_s = t0.elapsed().as_secs_f64();
+    Ok(())
 }
 
 #[cfg(test)]

@@ -40,11 +40,26 @@ enum Verb {
     Run(RunArgs),
     /// Runs over a range of parameter values
     Sweep(SweepArgs),
+    /// Merge the shard files of one campaign (`sweep --shard K/N`) into one campaign file
+    Merge(MergeArgs),
     /// Plot sensor histories of a results file
     Plot(PlotArgs),
     /// The speed-against-error suite: reference problems at several resolutions, wall
     /// time beside error, ensemble throughput; writes docs/bench/results.{md,json} and work_precision.png
     Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// shard files of one campaign (`sweep --shard K/N -o ...`), in any order
+    #[arg(required = true, value_name = "SHARD.h5")]
+    shards: Vec<PathBuf>,
+    /// the merged campaign file (HDF5)
+    #[arg(short, long, value_name = "PATH")]
+    output: PathBuf,
+    /// print the report object as JSON on stdout
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -491,6 +506,7 @@ fn dispatch(cli: &Cli) -> anyhow::Result<()> {
         Verb::Modes(a) => modes(a),
         Verb::Run(a) => run(a),
         Verb::Sweep(a) => sweep(a),
+        Verb::Merge(a) => merge(a),
         Verb::Plot(a) => plot(a),
         Verb::Bench(a) => bench(a),
     }
@@ -1201,6 +1217,102 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
         Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
         None => Ok(()),
+    }
+}
+
+/// `latdyn merge`: exit 0 when every variant completed, 3 when all ran and some failed,
+/// 4 when some are missing or interrupted (resume the merged file), 2 when refused
+/// (another campaign, repeated indices, unreadable input), 5 when the output failed.
+fn merge(args: &MergeArgs) -> anyhow::Result<()> {
+    use latdyn::campaign::{self, MergeError, MergeReport};
+    let out_canon = std::fs::canonicalize(&args.output).ok();
+    for s in &args.shards {
+        if out_canon.is_some() && std::fs::canonicalize(s).ok() == out_canon {
+            bail!(
+                "merge: -o {} is one of the shard files; write the merged campaign elsewhere",
+                args.output.display()
+            );
+        }
+    }
+    let target = claim_output(&args.output)?;
+    let mut report = MergeReport::default();
+    let command_line = std::env::args().collect::<Vec<_>>().join(" ");
+    let result = campaign::merge(&args.shards, target, &command_line, &mut report);
+    let (code, message) = match &result {
+        Ok(()) if !report.missing.is_empty() || !report.interrupted.is_empty() => (
+            EXIT_INTERRUPTED,
+            format!(
+                "campaign incomplete: {} missing, {} interrupted, {} failed of {} variants; complete it with `latdyn sweep ... --resume {}`",
+                report.missing.len(),
+                report.interrupted.len(),
+                report.failed.len(),
+                report.variants,
+                args.output.display()
+            ),
+        ),
+        Ok(()) if !report.failed.is_empty() => (
+            EXIT_FAILED,
+            format!(
+                "{} of {} variants failed (see their status and message in {})",
+                report.failed.len(),
+                report.variants,
+                args.output.display()
+            ),
+        ),
+        Ok(()) => (0, String::new()),
+        Err(MergeError::Output(e)) => (EXIT_OUTPUT, e.to_string()),
+        Err(e) => (EXIT_USAGE, e.to_string()),
+    };
+    if result.is_err() {
+        report.status = "refused".into();
+    }
+    report.message = message.clone();
+    let list = |v: &[usize]| {
+        let shown: Vec<String> = v.iter().take(30).map(|g| g.to_string()).collect();
+        format!(
+            "{}{}",
+            shown.join(", "),
+            if v.len() > shown.len() { ", …" } else { "" }
+        )
+    };
+    if result.is_ok() {
+        eprintln!(
+            "merge: campaign {} ({} variants) from {} shard file(s) into {} in {:.2} s: {} completed, {} failed, {} interrupted, {} missing",
+            report.campaign_id,
+            report.variants,
+            report.shards.len(),
+            args.output.display(),
+            report.wall_s,
+            report.completed,
+            report.failed.len(),
+            report.interrupted.len(),
+            report.missing.len()
+        );
+        for (what, v) in [
+            ("missing", &report.missing),
+            ("interrupted", &report.interrupted),
+            ("failed", &report.failed),
+        ] {
+            if !v.is_empty() {
+                eprintln!("merge: {what} global indices: {}", list(v));
+            }
+        }
+        if !report.verification_not_merged.is_empty() {
+            eprintln!(
+                "warning: merge: /verification of {} is not carried into the merged file",
+                report.verification_not_merged.join(", ")
+            );
+        }
+    }
+    if args.json {
+        emit(&format!(
+            "{}\n",
+            serde_json::to_string(&report).map_err(|e| anyhow!("{e}"))?
+        ))?;
+    }
+    match code {
+        0 => Ok(()),
+        c => Err(fail(c, message)),
     }
 }
 

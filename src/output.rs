@@ -133,6 +133,13 @@ use rust_hdf5::{DatatypeMessage, H5File, H5Group};
 /// Target number of f64 values in one sensor chunk (512 KiB uncompressed).
 pub const CHUNK_ELEMENTS: usize = 65_536;
 
+/// Time samples per chunk of a sensor with `n_comp` components over `n_time` output
+/// times: chunks are [1, this, n_comp], whatever the number of variants, so a shard's
+/// chunks are the whole campaign's chunks.
+pub fn chunk_times(n_comp: usize, n_time: usize) -> usize {
+    (CHUNK_ELEMENTS / n_comp.max(1)).clamp(1, n_time.max(1))
+}
+
 /// Deflate level of the sensor datasets (after the shuffle filter).
 const DEFLATE_LEVEL: u32 = 4;
 
@@ -675,6 +682,19 @@ impl CampaignWriter {
         meta: &CampaignMeta,
         campaign: Option<crate::campaign::CampaignInfo>,
     ) -> Result<Self, OutputError> {
+        let mut w = Self::build(target, meta, campaign, true)?;
+        w.flush()?;
+        Ok(w)
+    }
+
+    /// The writer's state for `meta`, nothing written yet; without `samples`, no sensor
+    /// sample is held in memory (a streamed file: [`write_streamed`](Self::write_streamed)).
+    fn build(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+        samples: bool,
+    ) -> Result<Self, OutputError> {
         let n_variants = meta.parameter_values.len();
         let n_time = meta.time.len();
         for (v, row) in meta.parameter_values.iter().enumerate() {
@@ -720,22 +740,27 @@ impl CampaignWriter {
                     s.units.len()
                 )));
             }
-            let chunk_t = (CHUNK_ELEMENTS / n_comp).clamp(1, n_time.max(1));
+            let chunk_t = chunk_times(n_comp, n_time);
             let chunks_t = n_time.div_ceil(chunk_t);
-            let n_chunks = n_variants * chunks_t;
+            let n_chunks = if samples { n_variants * chunks_t } else { 0 };
+            let n_values = if samples {
+                n_variants * n_time * n_comp
+            } else {
+                0
+            };
             sensors.push(SensorBuf {
                 meta: s.clone(),
                 n_comp,
                 chunk_t,
                 chunks_t,
-                data: vec![f64::NAN; n_variants * n_time * n_comp],
+                data: vec![f64::NAN; n_values],
                 compressed: vec![None; n_chunks],
                 dirty: vec![false; n_chunks],
             });
         }
         let path = target.path().to_path_buf();
         let tmp_path = target.tmp_path();
-        let mut w = CampaignWriter {
+        let w = CampaignWriter {
             path,
             tmp_path,
             target,
@@ -754,8 +779,38 @@ impl CampaignWriter {
             verification: None,
             campaign,
         };
-        w.flush()?;
         Ok(w)
+    }
+
+    /// Write a whole campaign file at `target` in one pass, its sensor samples coming from
+    /// `fill` instead of memory: `fill` gets the `/sensors` datasets (in `meta.sensors`
+    /// order, chunked [1, ≤T, C] as [`create`](Self::create) makes them) and writes
+    /// their chunks (`write_chunk_raw_at`), so the memory is what `fill` holds (`merge`:
+    /// one chunk), not the campaign. Everything else (status, derived, `/campaign`) is
+    /// given here. The file appears at `target` atomically when complete.
+    #[allow(clippy::too_many_arguments)]
+    pub fn write_streamed(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+        status: Vec<VariantStatus>,
+        derived: Vec<(String, Vec<f64>)>,
+        file_status: &str,
+        fill: &mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>,
+    ) -> Result<(), OutputError> {
+        let mut w = Self::build(target, meta, campaign, false)?;
+        if status.len() != w.n_variants || derived.iter().any(|(_, d)| d.len() != w.n_variants) {
+            return Err(OutputError::Invalid(format!(
+                "write_streamed: status and derived need {} entries",
+                w.n_variants
+            )));
+        }
+        for (name, _) in &derived {
+            check_name("derived", name)?;
+        }
+        w.status = status;
+        w.derived = derived;
+        w.write_file_with(file_status, Some(fill))
     }
 
     /// Path of the campaign file.
@@ -947,6 +1002,14 @@ impl CampaignWriter {
     }
 
     fn write_file(&mut self, status: &str) -> Result<(), OutputError> {
+        self.write_file_with(status, None)
+    }
+
+    fn write_file_with(
+        &mut self,
+        status: &str,
+        fill: Option<&mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>>,
+    ) -> Result<(), OutputError> {
         self.compress_dirty()?;
         let io_err = |path: &Path| {
             let path = path.to_path_buf();
@@ -956,7 +1019,7 @@ impl CampaignWriter {
         // directory, a full disk or a permission problem.
         let _ = fs::remove_file(&self.tmp_path);
         fs::File::create_new(&self.tmp_path).map_err(io_err(&self.path))?;
-        let result = self.write_hdf5(status);
+        let result = self.write_hdf5(status, fill);
         if let Err(e) = result {
             let _ = fs::remove_file(&self.tmp_path);
             return Err(e);
@@ -965,7 +1028,11 @@ impl CampaignWriter {
     }
 
     /// Write the whole file to the temporary path (closed and synced on return).
-    fn write_hdf5(&self, status: &str) -> Result<(), OutputError> {
+    fn write_hdf5(
+        &self,
+        status: &str,
+        fill: Option<&mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>>,
+    ) -> Result<(), OutputError> {
         let tmp = self.tmp_path.clone();
         let h5 = |what: &str| -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError> {
             let what = what.to_string();
@@ -980,7 +1047,7 @@ impl CampaignWriter {
             .best_effort_locking()
             .create(&tmp)
             .map_err(h5("create"))?;
-        match self.write_objects(&file, status, &h5) {
+        match self.write_objects(&file, status, &h5, fill) {
             Ok(()) => file.close().map_err(h5("close")),
             Err(e) => {
                 // closed explicitly: dropping it would print rust-hdf5's own warning
@@ -992,7 +1059,13 @@ impl CampaignWriter {
     }
 
     /// Every object of the file (see the layout in the module docs).
-    fn write_objects<E>(&self, file: &H5File, status: &str, h5: &E) -> Result<(), OutputError>
+    fn write_objects<E>(
+        &self,
+        file: &H5File,
+        status: &str,
+        h5: &E,
+        fill: Option<&mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>>,
+    ) -> Result<(), OutputError>
     where
         E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
     {
@@ -1054,6 +1127,7 @@ impl CampaignWriter {
 
         // /sensors
         let sensors = file.create_group("sensors").map_err(h5("/sensors"))?;
+        let mut datasets = Vec::with_capacity(self.sensors.len());
         for s in &self.sensors {
             let what = format!("/sensors/{}", s.meta.name);
             let shape = [nv, self.n_time, s.n_comp];
@@ -1082,6 +1156,12 @@ impl CampaignWriter {
             let units: Vec<&str> = s.meta.units.iter().map(String::as_str).collect();
             set_ds_string_array_attr(&ds, "components", &comps).map_err(h5(&what))?;
             set_ds_string_array_attr(&ds, "units", &units).map_err(h5(&what))?;
+            datasets.push(ds);
+        }
+        if let Some(fill) = fill {
+            if nv > 0 && self.n_time > 0 {
+                fill(&datasets)?;
+            }
         }
 
         // /status
