@@ -712,6 +712,132 @@ pub fn merge(
     Ok(())
 }
 
+/// What `sweep --resume FILE` runs, and the file reopened to take it.
+pub struct Resume {
+    pub prepared: crate::ensemble::Prepared,
+    pub writer: CampaignWriter,
+    /// per variant of `prepared`, its row in the file
+    pub rows: Vec<usize>,
+    /// the file had `/verification`, which the completed file no longer carries
+    pub verification_dropped: bool,
+}
+
+/// Reopen the campaign file at `target` for `sweep --resume`: refuses a file of another
+/// campaign definition than `c` run on `stage` (naming what differs), then prepares the
+/// file's variants that are not completed (pending, running, failed, interrupted, or
+/// missing in a merge) and reopens the file with their rows cleared (state pending, NaN
+/// samples); every completed row keeps its stored bytes.
+pub fn resume(
+    target: OutputTarget,
+    c: &crate::ensemble::Campaign,
+    stage: &crate::ensemble::Stage,
+) -> Result<Resume, MergeError> {
+    let f = CampaignFile::open(target.path())?;
+    let rerun: Vec<bool> = f
+        .status
+        .iter()
+        .map(|s| s.state != VariantState::Completed)
+        .collect();
+    let rows: Vec<usize> = (0..rerun.len()).filter(|&r| rerun[r]).collect();
+    // an index outside the campaign given now changes the definition: the hash tells
+    let gis: Vec<usize> = rows
+        .iter()
+        .map(|&r| f.global_index[r])
+        .filter(|&g| g < c.variants.len())
+        .collect();
+    let prepared = crate::ensemble::prepare_rows(c, gis)
+        .map_err(|e| MergeError::Refused(format!("--resume {}: {e}", f.path.display())))?;
+    let now = crate::ensemble::identify(c, &prepared, stage)
+        .map_err(|e| MergeError::Refused(e.to_string()))?;
+    if now.hash != f.info.hash {
+        let diff = differences(&f.info.definition, &now.definition);
+        return Err(MergeError::Refused(format!(
+            "--resume {}: the campaign definition changed (file: campaign {}, now: {}){}; \
+             resume with the same model file, --vary/--variants, --set, --accuracy, \
+             --frequency, backend and precision, and the same latdyn version",
+            f.path.display(),
+            f.info.id,
+            now.id,
+            if diff.is_empty() {
+                String::new()
+            } else {
+                format!("; what differs: {}", diff.join("; "))
+            }
+        )));
+    }
+    let layout = prepared
+        .models
+        .first()
+        .or(prepared.reference.as_ref())
+        .ok_or_else(|| MergeError::Refused("--resume: no model compiled".into()))?;
+    let mut parameter_values = f.parameter_values.clone();
+    for (v, &r) in rows.iter().enumerate() {
+        parameter_values[r] = prepared.models[v].params.iter().map(|(_, x)| *x).collect();
+    }
+    let meta = CampaignMeta {
+        command_line: c.command_line.clone(),
+        model_path: f.model_path.clone(),
+        model_source: f.model_source.clone(),
+        backend: stage.backend.clone(),
+        precision: stage.precision.clone(),
+        adapter: stage.adapter.clone(),
+        threads: c.threads,
+        parameter_names: f.parameter_names.clone(),
+        parameter_values,
+        global_index: f.global_index.clone(),
+        time: f.time.clone(),
+        sensors: SensorMeta::of_model(layout),
+    };
+    let mut status = f.status.clone();
+    let mut derived = f.derived.clone();
+    for &r in &rows {
+        status[r] = VariantStatus::default();
+        for (_, d) in &mut derived {
+            d[r] = f64::NAN;
+        }
+    }
+    let datasets = meta
+        .sensors
+        .iter()
+        .map(|s| f.sensor(&s.name))
+        .collect::<Result<Vec<_>, _>>()?;
+    let path = f.path.clone();
+    let mut chunk = |k: usize, row: usize, ct: usize| -> Result<Option<Vec<u8>>, OutputError> {
+        if rerun[row] {
+            return Ok(None);
+        }
+        match datasets[k].read_chunk_raw_at(&[row, ct, 0]) {
+            Ok((bytes, 0)) => Ok(Some(bytes)),
+            Ok((_, mask)) => Err(OutputError::Invalid(format!(
+                "{}: /sensors/{} chunk {row},{ct} skips filters (mask {mask}): not written by \
+                 latdyn",
+                path.display(),
+                meta.sensors[k].name
+            ))),
+            Err(e) if e.to_string().contains("has not been written") => Ok(None),
+            Err(e) => Err(OutputError::Invalid(format!(
+                "{}: reading /sensors/{} chunk {row},{ct}: {e}",
+                path.display(),
+                meta.sensors[k].name
+            ))),
+        }
+    };
+    let writer = CampaignWriter::reopen(
+        target,
+        &meta,
+        Some(f.info.clone()),
+        status,
+        derived,
+        &mut chunk,
+    )?;
+    Ok(Resume {
+        prepared,
+        writer,
+        rows,
+        verification_dropped: f.has_verification,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

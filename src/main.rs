@@ -302,6 +302,12 @@ struct SweepArgs {
     /// only shard 1 verifies
     #[arg(long, value_name = "K")]
     verify: Option<usize>,
+    /// complete this campaign file in place: run only its variants that are not
+    /// completed (missing, failed, interrupted); refused when the campaign definition
+    /// (model, --vary/--variants, --set, --accuracy, --frequency, backend, precision,
+    /// latdyn version) differs from the file's
+    #[arg(long, value_name = "CAMPAIGN.h5", conflicts_with_all = ["output", "shard", "verify"])]
+    resume: Option<PathBuf>,
 }
 
 /// `--count`: at least one mode, and bounded so that `count + spares` cannot overflow.
@@ -1379,7 +1385,12 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     // the element count decides `auto`; the model is compiled again per variant later
     let n_elem = args.model.load()?.elements.len();
     // before compiling the variants: a refused path costs nothing
-    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let mut target = args
+        .output
+        .as_deref()
+        .or(args.resume.as_deref())
+        .map(claim_output)
+        .transpose()?;
     let n_var = variants.len().max(1);
     let (stage, batcher) = choose_stage(&args.backend, n_var, n_elem, cores)?;
     let threads = args.threads.unwrap_or(if stage.make.is_some() {
@@ -1394,7 +1405,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         base: args.model.set.clone(),
         variants,
         threads,
-        output: args.output.clone(),
+        output: args.output.clone().or(args.resume.clone()),
         shard: args.shard,
         accuracy: args.accuracy,
         frequency_sensor,
@@ -1427,7 +1438,29 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             }
         }
     };
-    let prepared = ensemble::prepare(&c)?;
+    let (prepared, resume) = match (&args.resume, target.take()) {
+        (Some(path), Some(t)) => {
+            let r = latdyn::campaign::resume(t, &c, &stage).map_err(|e| anyhow!("{e}"))?;
+            if r.verification_dropped {
+                eprintln!(
+                    "warning: --resume: {} had /verification (sweep --verify); the completed \
+                     file no longer carries it (run sweep --verify again to measure it)",
+                    path.display()
+                );
+            }
+            eprintln!(
+                "sweep --resume {}: {} variant(s) to run (not completed) of {} in the file",
+                path.display(),
+                r.rows.len(),
+                r.writer.n_variants()
+            );
+            (r.prepared, Some((r.writer, r.rows)))
+        }
+        (_, t) => {
+            target = t;
+            (ensemble::prepare(&c)?, None)
+        }
+    };
     let stop = stop_flag();
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(prepared.models.len() as u64);
@@ -1446,23 +1479,31 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         outcomes,
         output_error,
         verification,
-    } = ensemble::run_verified_to(
-        &c,
-        &prepared,
-        &stop,
-        false,
-        &|done, _| {
+    } = {
+        let progress = |done: usize, _: usize| {
             if let Some(b) = &bar {
                 b.set_position(done as u64);
             }
             if injected_panic("worker") {
                 panic!("injected panic in a sweep worker (LATDYN_FAULT_PANIC=worker)");
             }
-        },
-        &stage,
-        target,
-        verify_chosen.as_deref(),
-    )
+        };
+        match resume {
+            Some((writer, rows)) => {
+                ensemble::run_resume(&c, &prepared, &stop, &progress, &stage, writer, &rows)
+            }
+            None => ensemble::run_verified_to(
+                &c,
+                &prepared,
+                &stop,
+                false,
+                &progress,
+                &stage,
+                target,
+                verify_chosen.as_deref(),
+            ),
+        }
+    }
     .map_err(|e| anyhow!("{e}"))?;
     if let Some(b) = &batcher {
         let st = b.stats();

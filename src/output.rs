@@ -782,6 +782,56 @@ impl CampaignWriter {
         Ok(w)
     }
 
+    /// Reopen a campaign file to complete it (`sweep --resume`): the writer starts with
+    /// `meta`, `status` and `derived` as given, and each sensor chunk (sensor index in
+    /// `meta.sensors`, row, chunk index along time) as `chunk` returns it: the stored,
+    /// filtered bytes, kept as they are (so the samples stay bit for bit), or `None` for a
+    /// chunk that reads NaN (a row to be run again). Nothing is written until the next
+    /// flush or finish.
+    pub fn reopen(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+        status: Vec<VariantStatus>,
+        derived: Vec<(String, Vec<f64>)>,
+        chunk: &mut dyn FnMut(usize, usize, usize) -> Result<Option<Vec<u8>>, OutputError>,
+    ) -> Result<Self, OutputError> {
+        let mut w = Self::build(target, meta, campaign, true)?;
+        if status.len() != w.n_variants || derived.iter().any(|(_, d)| d.len() != w.n_variants) {
+            return Err(OutputError::Invalid(format!(
+                "reopen: status and derived need {} entries",
+                w.n_variants
+            )));
+        }
+        w.status = status;
+        w.derived = derived;
+        for (k, s) in w.sensors.iter_mut().enumerate() {
+            for row in 0..w.n_variants {
+                for ct in 0..s.chunks_t {
+                    s.compressed[row * s.chunks_t + ct] = chunk(k, row, ct)?;
+                }
+            }
+        }
+        w.dirty = false;
+        Ok(w)
+    }
+
+    /// Set the parameter values of `variant` (`sweep --resume`: a row a merge could not
+    /// fill from a shard gets the values of the model it is run with).
+    pub fn set_parameters(&mut self, variant: usize, values: &[f64]) -> Result<(), OutputError> {
+        self.check_variant(variant)?;
+        if values.len() != self.meta.parameter_names.len() {
+            return Err(OutputError::Invalid(format!(
+                "variant {variant}: {} parameter values for {} names",
+                values.len(),
+                self.meta.parameter_names.len()
+            )));
+        }
+        self.meta.parameter_values[variant] = values.to_vec();
+        self.dirty = true;
+        Ok(())
+    }
+
     /// Write a whole campaign file at `target` in one pass, its sensor samples coming from
     /// `fill` instead of memory: `fill` gets the `/sensors` datasets (in `meta.sensors`
     /// order, chunked [1, ≤T, C] as [`create`](Self::create) makes them) and writes
@@ -811,6 +861,11 @@ impl CampaignWriter {
         w.status = status;
         w.derived = derived;
         w.write_file_with(file_status, Some(fill))
+    }
+
+    /// Variants (rows) of the file.
+    pub fn n_variants(&self) -> usize {
+        self.n_variants
     }
 
     /// Path of the campaign file.
