@@ -55,7 +55,19 @@
 //! /campaign/varied         str [Q]: names of the varied parameters
 //! /campaign/variants       float64 [N, Q]: their values, per global index
 //! /campaign/set_names      str [S], /campaign/set_values float64 [S]: the --set values
+//! /xarray                  the campaign labelled for xarray (netCDF-4 dimension scales;
+//!                          only when V > 0 and T > 0):
+//! /xarray/variant          int64 [V]: dimension scale `variant` (global indices)
+//! /xarray/time             float64 [T]: dimension scale `time` (a copy of /time)
+//! /xarray/<NAME>_component str [C]: dimension scale, the component names of a sensor
+//! /xarray/<PARAM>          float64 [V]: each varied parameter, on `variant`
+//! /xarray/<NAME>           hard link to /sensors/<NAME>, dims (variant, time,
+//!                          <NAME>_component); attr coordinates = the varied parameters
+//! /xarray/<DERIVED>, /xarray/state   hard links to /derived/*, /status/state (variant)
 //! ```
+//!
+//! Attaching the scales gives /sensors/*, /derived/* and /status/state a
+//! `DIMENSION_LIST` attribute (and `coordinates`); the samples are not copied.
 //!
 //! A campaign run with `sweep --verify K` also has (README "Discretisation error of a
 //! campaign"; `K` =
@@ -1278,8 +1290,122 @@ impl CampaignWriter {
 
         if let Some(c) = &self.campaign {
             write_campaign(file, c, h5)?;
+            if nv > 0 && self.n_time > 0 {
+                self.write_xarray(file, c, &datasets, h5)?;
+            }
         }
 
+        Ok(())
+    }
+
+    /// `/xarray` (see the layout in the module docs): netCDF-4 dimension scales, so
+    /// `xarray.open_dataset(path, engine="h5netcdf", group="xarray")` names every axis.
+    /// The sensors, derived quantities and states are hard links to the datasets above
+    /// (no copy); attaching the scales adds `DIMENSION_LIST` to them, which h5py readers
+    /// ignore.
+    fn write_xarray<E>(
+        &self,
+        file: &H5File,
+        c: &crate::campaign::CampaignInfo,
+        sensors: &[rust_hdf5::H5Dataset],
+        h5: &E,
+    ) -> Result<(), OutputError>
+    where
+        E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
+    {
+        let e = |what: &str| h5(&format!("/xarray{what}"));
+        let m = &self.meta;
+        let g = file.create_group("xarray").map_err(e(""))?;
+        // one name space in the group: the first use of a name wins (a parameter named
+        // like a sensor keeps its value in /parameters only)
+        let mut used: Vec<String> = vec!["variant".into(), "time".into()];
+        let gi: Vec<i64> = self
+            .global_index
+            .iter()
+            .map(|&x| i64::try_from(x).unwrap_or(i64::MAX))
+            .collect();
+        let variant = g
+            .new_dataset::<i64>()
+            .shape([gi.len()])
+            .create("variant")
+            .map_err(e("/variant"))?;
+        variant.write_raw(&gi).map_err(e("/variant"))?;
+        variant.set_scale(Some("variant")).map_err(e("/variant"))?;
+        set_ds_string_attr(
+            &variant,
+            "long_name",
+            "global index of the variant in the campaign",
+        )
+        .map_err(e("/variant"))?;
+        let time = g
+            .new_dataset::<f64>()
+            .shape([self.n_time])
+            .create("time")
+            .map_err(e("/time"))?;
+        time.write_raw(&m.time).map_err(e("/time"))?;
+        time.set_scale(Some("time")).map_err(e("/time"))?;
+        set_ds_string_attr(&time, "units", "s").map_err(e("/time"))?;
+        let mut coords = Vec::new();
+        for name in &c.varied {
+            let Some(k) = m.parameter_names.iter().position(|p| p == name) else {
+                continue;
+            };
+            if used.contains(name) {
+                continue;
+            }
+            let what = format!("/{name}");
+            let col: Vec<f64> = m.parameter_values.iter().map(|row| row[k]).collect();
+            let ds = g
+                .new_dataset::<f64>()
+                .shape([col.len()])
+                .create(name)
+                .map_err(e(&what))?;
+            ds.write_raw(&col).map_err(e(&what))?;
+            ds.attach_scale(0, &variant).map_err(e(&what))?;
+            used.push(name.clone());
+            coords.push(name.as_str());
+        }
+        let coords = coords.join(" ");
+        for (s, ds) in self.sensors.iter().zip(sensors) {
+            let name = &s.meta.name;
+            let dim = format!("{name}_component");
+            if used.contains(name) || used.contains(&dim) {
+                continue;
+            }
+            let what = format!("/{name}");
+            let comps: Vec<&str> = s.meta.components.iter().map(String::as_str).collect();
+            let cds = g.write_vlen_strings(&dim, &comps).map_err(e(&what))?;
+            cds.set_scale(Some(&dim)).map_err(e(&what))?;
+            g.link(name, &format!("/sensors/{name}"))
+                .map_err(e(&what))?;
+            ds.attach_scale(0, &variant).map_err(e(&what))?;
+            ds.attach_scale(1, &time).map_err(e(&what))?;
+            ds.attach_scale(2, &cds).map_err(e(&what))?;
+            if !coords.is_empty() {
+                set_ds_string_attr(ds, "coordinates", &coords).map_err(e(&what))?;
+            }
+            used.push(name.clone());
+            used.push(dim);
+        }
+        let mut per_variant: Vec<(String, String)> = self
+            .derived
+            .iter()
+            .map(|(n, _)| (n.clone(), format!("/derived/{n}")))
+            .collect();
+        per_variant.push(("state".into(), "/status/state".into()));
+        for (name, path) in per_variant {
+            if used.contains(&name) {
+                continue;
+            }
+            let what = format!("/{name}");
+            let ds = file.dataset_writer(&path[1..]).map_err(e(&what))?;
+            g.link(&name, &path).map_err(e(&what))?;
+            ds.attach_scale(0, &variant).map_err(e(&what))?;
+            if !coords.is_empty() {
+                set_ds_string_attr(&ds, "coordinates", &coords).map_err(e(&what))?;
+            }
+            used.push(name);
+        }
         Ok(())
     }
 }

@@ -389,3 +389,60 @@ fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert_same_campaign(&whole, &cut);
 }
+
+#[test]
+fn merged_campaign_opens_in_xarray_with_named_dimensions_and_parameter_coordinates() {
+    let ok = Command::new("python3")
+        .args(["-c", "import h5py, xarray, h5netcdf"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        if std::env::var_os("CI").is_some() {
+            panic!("xarray or h5netcdf is not installed, but CI is set: .ci/run installs them");
+        }
+        println!("SKIPPED: python3 -c 'import h5py, xarray, h5netcdf' failed");
+        return;
+    }
+    let dir = scratch("xarray");
+    let base = &[
+        "models/rotating_cantilever.toml",
+        "--vary",
+        "omega=1:5:9",
+        "--set",
+        "t_end=0.3",
+    ];
+    let mut shards = Vec::new();
+    for k in [1, 2] {
+        let p = dir.join(format!("s{k}.h5"));
+        let shard = format!("{k}/2");
+        let o = run(sweep(base, &["--shard", &shard, "-o", s(&p)]));
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        shards.push(p);
+    }
+    let merged = dir.join("m.h5");
+    let o = run(latdyn(&[
+        "merge",
+        s(&shards[0]),
+        s(&shards[1]),
+        "-o",
+        s(&merged),
+    ]));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // omega = 3.1 is nearest to the grid value 3 (variant 4); shard 2/2 has it too
+    for file in [&merged, &shards[1]] {
+        let out = Command::new("python3")
+            .args(["-W", "ignore"])
+            .arg(root().join("tests/xarray_campaign.py"))
+            .arg(file)
+            .args(["omega", "3.1", "tip_flap"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success() && String::from_utf8_lossy(&out.stdout).trim_end() == "OK",
+            "{}: {}{}",
+            file.display(),
+            String::from_utf8_lossy(&out.stdout),
+            stderr(&out)
+        );
+    }
+}
