@@ -838,6 +838,97 @@ pub fn resume(
     })
 }
 
+/// One variant run for a fraction of its time span by `sweep --plan` (see [`probe`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Probe {
+    /// global index
+    pub index: usize,
+    /// the probe ran from 0 to this time (the variant's t_end × fraction)
+    pub t_probe: f64,
+    pub t_end: f64,
+    /// compiling the variant's model [s] (a sweep compiles every variant once)
+    pub compile_s: f64,
+    /// the probe's time integration to `t_probe` [s]
+    pub wall_s: f64,
+    pub steps: usize,
+    /// "completed", or why the probe stopped
+    pub status: String,
+    /// estimate of the whole variant: compile + setup + rate × t_end [s], from runs to
+    /// t_probe / 2 and t_probe (wall = setup + rate × t)
+    pub per_variant_s: f64,
+}
+
+/// Run the variants `indices` of `c` from 0 to `fraction` / 2 and `fraction` × t_end on
+/// one CPU thread and time them: the cost per variant of the campaign, extrapolated
+/// linearly in the simulated time (exact for fixed steps; with `--accuracy` the step may change later in
+/// the run). Each probe runs the sweep's own code path, so a variant that fails early
+/// says so here.
+pub fn probe(
+    c: &crate::ensemble::Campaign,
+    indices: &[usize],
+    fraction: f64,
+) -> Result<Vec<Probe>, crate::ensemble::EnsembleError> {
+    let mut out = Vec::with_capacity(indices.len());
+    for &g in indices {
+        let t0 = std::time::Instant::now();
+        let mut sets = c.base.clone();
+        sets.extend(c.variants[g].iter().cloned());
+        let mut m = crate::model::load(&c.model_path, &sets)?;
+        if c.accuracy.is_some() {
+            m.solver.accuracy = c.accuracy;
+        }
+        let compile_s = t0.elapsed().as_secs_f64();
+        let t_end = m.solver.t_end;
+        // two runs, to half and to all of the probe span: wall = setup + rate × t, so
+        // the setup (integrator, initial state) is not extrapolated with the time
+        let mut runs = Vec::new();
+        for f in [fraction / 2.0, fraction] {
+            m.solver.t_end = t_end * f;
+            let t1 = std::time::Instant::now();
+            let (_, stats, err) = crate::solver::dynamics::run_with(&m, None, None, |_, _| {});
+            runs.push((m.solver.t_end, t1.elapsed().as_secs_f64(), stats.steps, err));
+        }
+        let (ta, wa, _, _) = runs[0];
+        let (tb, wb, steps, ref err) = runs[1];
+        let rate = if tb > ta && wb > wa {
+            (wb - wa) / (tb - ta)
+        } else if tb > 0.0 {
+            wb / tb
+        } else {
+            0.0
+        };
+        let setup = (wa - rate * ta).max(0.0);
+        out.push(Probe {
+            index: g,
+            t_probe: tb,
+            t_end,
+            compile_s,
+            wall_s: wb,
+            steps,
+            status: err
+                .as_ref()
+                .map_or_else(|| "completed".to_string(), |e| e.to_string()),
+            per_variant_s: compile_s + setup + rate * t_end,
+        });
+    }
+    Ok(out)
+}
+
+/// Which variants a probe of `k` runs among `n`: spread evenly, first and last included.
+pub fn probe_indices(n: usize, k: usize) -> Vec<usize> {
+    if n == 0 || k == 0 {
+        return Vec::new();
+    }
+    if k == 1 || n == 1 {
+        return vec![0];
+    }
+    let mut v: Vec<usize> = (0..k.min(n))
+        .map(|i| (i * (n - 1) + (k.min(n) - 1) / 2) / (k.min(n) - 1))
+        .collect();
+    v.dedup();
+    v
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -884,6 +975,9 @@ mod tests {
             assert!(!differences(&base.definition, &o.definition).is_empty());
         }
         let d = differences(&base.definition, &others[2].definition);
+        assert_eq!(probe_indices(10, 3), vec![0, 5, 9]);
+        assert_eq!(probe_indices(2, 3), vec![0, 1]);
+        assert_eq!(probe_indices(1, 3), vec![0]);
         assert_eq!(d.len(), 1, "{d:?}");
         assert!(d[0].starts_with("variants_sha256"), "{d:?}");
     }

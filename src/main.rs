@@ -308,6 +308,27 @@ struct SweepArgs {
     /// latdyn version) differs from the file's
     #[arg(long, value_name = "CAMPAIGN.h5", conflicts_with_all = ["output", "shard", "verify"])]
     resume: Option<PathBuf>,
+    /// print the campaign's plan instead of running it: the variant table, the shard of
+    /// each variant for --shards N, and the cost per variant from a short probe run
+    #[arg(long, conflicts_with_all = ["output", "shard", "verify", "resume"])]
+    plan: bool,
+    /// with --plan: the number of shards (array tasks) to plan for
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "plan", value_parser = parse_shards)]
+    shards: usize,
+    /// with --plan: variants probed (spread over the table, each run for 10 % of its
+    /// t_end on one thread); 0 = no probe
+    #[arg(long, value_name = "K", default_value_t = 3, requires = "plan")]
+    probe: usize,
+}
+
+/// `--shards N`: at least one, at most the variant limit.
+fn parse_shards(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=1_000_000).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{s}`: need a whole number of shards from 1 to 1000000"
+        )),
+    }
 }
 
 /// `--count`: at least one mode, and bounded so that `count + spares` cannot overflow.
@@ -1411,6 +1432,9 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         frequency_sensor,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
     };
+    if args.plan {
+        return sweep_plan(args, &c, &stage);
+    }
     // --verify K: K variants of shard 1 (the whole campaign when not sharded), checked
     // before any variant runs
     let verify_chosen: Option<Vec<usize>> = match (args.verify, args.shard) {
@@ -1700,6 +1724,107 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     .unwrap_or_default()
             ),
         ));
+    }
+    Ok(())
+}
+
+/// Fraction of t_end a `sweep --plan` probe runs.
+const PROBE_FRACTION: f64 = 0.1;
+
+/// `sweep --plan`: the variant table with each variant's shard, and the cost estimate.
+fn sweep_plan(
+    args: &SweepArgs,
+    c: &latdyn::ensemble::Campaign,
+    stage: &latdyn::ensemble::Stage,
+) -> anyhow::Result<()> {
+    use latdyn::campaign;
+    let n = c.variants.len();
+    let shards = args.shards;
+    // one compiled variant gives the time grid and sensors of the identity
+    let p = latdyn::ensemble::prepare_rows(c, vec![0])?;
+    let info = latdyn::ensemble::identify(c, &p, stage)?;
+    let m0 = &p.models[0];
+    let n_time = p.time.len();
+    let values_per_variant: usize = m0
+        .sensors
+        .iter()
+        .map(|s| latdyn::sensors::components(&s.kind).len())
+        .sum::<usize>()
+        * n_time;
+    let probes = campaign::probe(c, &campaign::probe_indices(n, args.probe), PROBE_FRACTION)?;
+    let ok: Vec<f64> = probes
+        .iter()
+        .filter(|x| x.status == "completed")
+        .map(|x| x.per_variant_s)
+        .collect();
+    let mean = (!ok.is_empty()).then(|| ok.iter().sum::<f64>() / ok.len() as f64);
+    let max = ok
+        .iter()
+        .copied()
+        .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))));
+    let per_shard = n.div_ceil(shards);
+    let threads = args.threads.unwrap_or(1);
+    let table: Vec<serde_json::Value> = c
+        .variants
+        .iter()
+        .enumerate()
+        .map(|(g, row)| {
+            let params: serde_json::Map<String, serde_json::Value> = row
+                .iter()
+                .map(|(k, v)| (k.clone(), serde_json::json!(v)))
+                .collect();
+            serde_json::json!({"index": g, "parameters": params, "shard": g % shards + 1})
+        })
+        .collect();
+    let counts: Vec<usize> = (0..shards)
+        .map(|k| (0..n).filter(|g| g % shards == k).count())
+        .collect();
+    let v = serde_json::json!({
+        "campaign_id": info.id,
+        "campaign_hash": info.hash,
+        "variants": n,
+        "varied": info.varied,
+        "shards": shards,
+        "variants_per_shard": counts,
+        "table": table,
+        "probe": {
+            "fraction_of_t_end": PROBE_FRACTION,
+            "runs": probes,
+            "per_variant_s": mean,
+            "max_per_variant_s": max,
+        },
+        "estimate": {
+            "threads_per_task": threads,
+            "cpu_s": mean.map(|x| x * n as f64),
+            "per_task_wall_s": mean.map(|x| x * per_shard as f64 / threads as f64),
+            "output_values": values_per_variant * n,
+            "output_mb_uncompressed": (values_per_variant * n) as f64 * 8.0 / 1e6,
+        },
+        "backend": stage.backend,
+        "precision": stage.precision,
+    });
+    if args.model.json {
+        emit(&format!("{v}\n"))?;
+    } else {
+        println!(
+            "campaign {} ({}): {n} variants, {shards} shard(s) of ≤ {per_shard}",
+            info.id,
+            c.model_path.display()
+        );
+        for x in &probes {
+            println!(
+                "probe variant {}: {} steps to t = {} in {:.3} s ({}), about {:.3} s per variant",
+                x.index, x.steps, x.t_probe, x.wall_s, x.status, x.per_variant_s
+            );
+        }
+        if let Some(mean) = mean {
+            println!(
+                "estimate: {:.1} CPU-s in all; {:.1} s per task on {threads} thread(s), plus \
+                 the merge",
+                mean * n as f64,
+                mean * per_shard as f64 / threads as f64
+            );
+        }
     }
     Ok(())
 }
