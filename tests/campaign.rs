@@ -446,3 +446,44 @@ fn merged_campaign_opens_in_xarray_with_named_dimensions_and_parameter_coordinat
         );
     }
 }
+
+#[test]
+fn plan_lists_each_variants_shard_as_the_sweep_writes_it_and_a_probe_cost() {
+    let dir = scratch("plan");
+    let o = run(sweep(
+        PENDULUM,
+        &["--plan", "--shards", "3", "--probe", "2", "--json"],
+    ));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let p = json(&o);
+    assert_eq!(p["variants"], 10);
+    assert_eq!(p["variants_per_shard"], serde_json::json!([4, 3, 3]));
+    let table = p["table"].as_array().unwrap();
+    assert_eq!(table.len(), 10);
+    let runs = p["probe"]["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    for r in runs {
+        assert_eq!(r["status"], "completed");
+        assert!(r["per_variant_s"].as_f64().unwrap() > 0.0);
+    }
+    assert!(p["estimate"]["cpu_s"].as_f64().unwrap() > 0.0);
+    // what --shard 2/3 writes is what the plan says shard 2 holds, same campaign
+    let shard = dir.join("s2.h5");
+    let o = run(sweep(PENDULUM, &["--shard", "2/3", "-o", s(&shard)]));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let f = rust_hdf5::H5File::open(&shard).unwrap();
+    let gi = f
+        .dataset("status/global_index")
+        .unwrap()
+        .read_raw::<i64>()
+        .unwrap();
+    let planned: Vec<i64> = table
+        .iter()
+        .filter(|r| r["shard"] == 2)
+        .map(|r| r["index"].as_i64().unwrap())
+        .collect();
+    assert_eq!(gi, planned);
+    assert_eq!(f.attr_string("campaign_hash").unwrap(), p["campaign_hash"]);
+    let theta = table[4]["parameters"]["theta0"].as_f64().unwrap();
+    assert!((theta - (0.3 + 4.0 * 2.2 / 9.0)).abs() < 1e-12, "{theta}");
+}
