@@ -975,10 +975,15 @@ mod tests {
             assert!(!differences(&base.definition, &o.definition).is_empty());
         }
         let d = differences(&base.definition, &others[2].definition);
+        assert_eq!(d.len(), 1, "{d:?}");
+        assert!(d[0].starts_with("variants_sha256"), "{d:?}");
+    }
+
+    #[test]
+    fn probes_spread_over_the_table_with_first_and_last() {
         assert_eq!(probe_indices(10, 3), vec![0, 5, 9]);
         assert_eq!(probe_indices(2, 3), vec![0, 1]);
         assert_eq!(probe_indices(1, 3), vec![0]);
-        assert_eq!(d.len(), 1, "{d:?}");
-        assert!(d[0].starts_with("variants_sha256"), "{d:?}");
+        assert!(probe_indices(5, 0).is_empty());
     }
 }
