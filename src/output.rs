@@ -142,6 +142,10 @@ use std::path::{Path, PathBuf};
 use rust_hdf5::format::messages::filter::{apply_filters, FilterPipeline};
 use rust_hdf5::{DatatypeMessage, H5File, H5Group};
 
+/// Writes the sensor chunks of a streamed file into its `/sensors` datasets (see
+/// [`CampaignWriter::write_streamed`]).
+pub type FillChunks<'a> = dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError> + 'a;
+
 /// Target number of f64 values in one sensor chunk (512 KiB uncompressed).
 pub const CHUNK_ELEMENTS: usize = 65_536;
 
@@ -858,7 +862,7 @@ impl CampaignWriter {
         status: Vec<VariantStatus>,
         derived: Vec<(String, Vec<f64>)>,
         file_status: &str,
-        fill: &mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>,
+        fill: &mut FillChunks<'_>,
     ) -> Result<(), OutputError> {
         let mut w = Self::build(target, meta, campaign, false)?;
         if status.len() != w.n_variants || derived.iter().any(|(_, d)| d.len() != w.n_variants) {
@@ -1075,7 +1079,7 @@ impl CampaignWriter {
     fn write_file_with(
         &mut self,
         status: &str,
-        fill: Option<&mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>>,
+        fill: Option<&mut FillChunks<'_>>,
     ) -> Result<(), OutputError> {
         self.compress_dirty()?;
         let io_err = |path: &Path| {
@@ -1098,7 +1102,7 @@ impl CampaignWriter {
     fn write_hdf5(
         &self,
         status: &str,
-        fill: Option<&mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>>,
+        fill: Option<&mut FillChunks<'_>>,
     ) -> Result<(), OutputError> {
         let tmp = self.tmp_path.clone();
         let h5 = |what: &str| -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError> {
@@ -1131,7 +1135,7 @@ impl CampaignWriter {
         file: &H5File,
         status: &str,
         h5: &E,
-        fill: Option<&mut dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError>>,
+        fill: Option<&mut FillChunks<'_>>,
     ) -> Result<(), OutputError>
     where
         E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
