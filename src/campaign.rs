@@ -271,6 +271,24 @@ impl CampaignFile {
                 .map(text)
                 .map_err(|e| err(format!("reading /{name}: {e}")))
         };
+        // before anything is allocated per variant of the campaign
+        let limit = crate::model::Limits::from_env().map_err(err)?.variants;
+        let n_declared = ds("campaign/variants")?
+            .shape()
+            .first()
+            .copied()
+            .unwrap_or(0);
+        if n_declared as u64 > limit {
+            return Err(err(format!(
+                "/campaign/variants: {}",
+                crate::model::limits::exceeded(
+                    "variants of the campaign",
+                    n_declared as f64,
+                    "variants",
+                    limit
+                )
+            )));
+        }
         let definition = scalar_text("campaign/definition")?;
         let varied = strings("campaign/varied")?;
         let table = f64s("campaign/variants")?;
