@@ -487,3 +487,35 @@ fn plan_lists_each_variants_shard_as_the_sweep_writes_it_and_a_probe_cost() {
     let theta = table[4]["parameters"]["theta0"].as_f64().unwrap();
     assert!((theta - (0.3 + 4.0 * 2.2 / 9.0)).abs() < 1e-12, "{theta}");
 }
+
+#[test]
+fn merge_of_more_shards_than_variants_skips_the_empty_ones_and_equals_the_single_sweep() {
+    let dir = scratch("merge_empty");
+    let base = &[
+        "models/pendulum.toml",
+        "--vary",
+        "theta0=0.5:2:3",
+        "--set",
+        "t_end=0.2",
+    ];
+    let full = dir.join("full.h5");
+    let o = run(sweep(base, &["-o", s(&full)]));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let mut args = vec!["merge".to_string()];
+    for k in 1..=5 {
+        let p = dir.join(format!("s{k}.h5"));
+        let shard = format!("{k}/5");
+        let o = run(sweep(base, &["--shard", &shard, "-o", s(&p)]));
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        args.push(s(&p).to_string());
+    }
+    let merged = dir.join("m.h5");
+    args.extend(["-o".to_string(), s(&merged).to_string(), "--json".into()]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run(latdyn(&refs));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r = json(&o);
+    assert_eq!(r["completed"], 3);
+    assert_eq!(r["shards"][4]["variants"], 0, "{r}");
+    assert_same_campaign(&full, &merged);
+}
