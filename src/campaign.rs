@@ -426,6 +426,90 @@ impl CampaignFile {
             })
     }
 
+    /// `/verification` as `sweep --verify` wrote it (None if the file has none); the
+    /// component names of each sensor come from `sensors` (the campaign's).
+    pub fn verification(
+        &self,
+        sensors: &[SensorMeta],
+    ) -> Result<Option<crate::output::VerificationData>, ReadError> {
+        if !self.has_verification {
+            return Ok(None);
+        }
+        let err = |message: String| ReadError {
+            path: self.path.clone(),
+            message,
+        };
+        let ds = |name: &str| {
+            self.file
+                .dataset(&format!("verification/{name}"))
+                .map_err(|e| err(format!("no /verification/{name} ({e})")))
+        };
+        let f64s = |name: &str| -> Result<Vec<f64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_raw::<f64>()
+                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
+        };
+        let i64s = |name: &str| -> Result<Vec<i64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_numeric_as::<i64>()
+                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
+        };
+        let strings = |name: &str| -> Result<Vec<String>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_strings()
+                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
+        };
+        let one = |name: &str| -> Result<f64, ReadError> {
+            f64s(name)?
+                .first()
+                .copied()
+                .ok_or_else(|| err(format!("/verification/{name} is empty")))
+        };
+        let pairs = |v: Vec<f64>| v.chunks(2).map(|c| [c[0], c[c.len() - 1]]).collect();
+        let elements: Vec<[usize; 2]> = i64s("elements")?
+            .chunks(2)
+            .map(|c| [c[0].max(0) as usize, c[c.len() - 1].max(0) as usize])
+            .collect();
+        let mut out = crate::output::VerificationData {
+            target: one("target")?,
+            target_source: ds("target_source")?
+                .read_raw_bytes()
+                .map(text)
+                .map_err(|e| err(format!("reading /verification/target_source: {e}")))?,
+            variants: i64s("variants")?
+                .into_iter()
+                .map(|g| g.max(0) as usize)
+                .collect(),
+            status: strings("status")?,
+            wall_s: f64s("wall_s")?,
+            dt: pairs(f64s("dt")?),
+            elements,
+            max_rel_diff: one("max_rel_diff")?,
+            warnings: strings("warnings")?,
+            sensors: Vec::new(),
+        };
+        for s in sensors {
+            let get = |g: &str| f64s(&format!("{g}/{}", s.name));
+            out.sensors.push(crate::output::VerificationSensor {
+                name: s.name.clone(),
+                components: s.components.clone(),
+                rel_diff: get("rel_diff")?,
+                refined_min: get("refined_min")?,
+                refined_max: get("refined_max")?,
+            });
+        }
+        Ok(Some(out))
+    }
+
     /// The variants of the whole campaign.
     pub fn n_total(&self) -> usize {
         self.info.variants.len()
@@ -452,8 +536,8 @@ pub struct MergeReport {
     /// what `sweep --resume` on the merged file runs: missing, failed and interrupted
     pub to_resume: Vec<usize>,
     pub shards: Vec<ShardReport>,
-    /// shards with `/verification` (`sweep --verify`), which the merged file does not
-    /// carry over
+    /// shards with `/verification` (`sweep --verify`) when more than one has it (then
+    /// the merged file has none; with one, it is carried over)
     pub verification_not_merged: Vec<String>,
     pub output: String,
     /// "complete" (every variant completed or failed), "incomplete" or "refused"
@@ -505,6 +589,7 @@ pub fn merge(
     let mut owner: Vec<Option<(usize, usize)>> = Vec::new();
     let mut first: Option<CampaignFile> = None;
     let mut duplicated = Vec::new();
+    let mut with_verification = Vec::new();
     for (k, p) in inputs.iter().enumerate() {
         let f = CampaignFile::open(p)?;
         match &first {
@@ -545,7 +630,7 @@ pub fn merge(
             completed,
         });
         if f.has_verification {
-            report.verification_not_merged.push(p.display().to_string());
+            with_verification.push(k);
         }
         if first.is_none() {
             first = Some(f);
@@ -663,6 +748,17 @@ pub fn merge(
     };
     let info = first.info.clone();
     drop(first);
+    // `sweep --verify` verifies in shard 1 only: its figures are the campaign's
+    let verification = match with_verification.as_slice() {
+        [k] => CampaignFile::open(&inputs[*k])?.verification(&sensors)?,
+        more => {
+            report.verification_not_merged = more
+                .iter()
+                .map(|&k| inputs[k].display().to_string())
+                .collect();
+            None
+        }
+    };
     let mut fill = |out: &[H5Dataset]| -> Result<(), OutputError> {
         let bad = |p: &Path, m: String| OutputError::Invalid(format!("{}: {m}", p.display()));
         for p in inputs {
@@ -718,6 +814,7 @@ pub fn merge(
         Some(info),
         status,
         derived,
+        verification,
         if incomplete {
             "interrupted"
         } else {
@@ -736,8 +833,6 @@ pub struct Resume {
     pub writer: CampaignWriter,
     /// per variant of `prepared`, its row in the file
     pub rows: Vec<usize>,
-    /// the file had `/verification`, which the completed file no longer carries
-    pub verification_dropped: bool,
 }
 
 /// Reopen the campaign file at `target` for `sweep --resume`: refuses a file of another
@@ -840,7 +935,8 @@ pub fn resume(
             ))),
         }
     };
-    let writer = CampaignWriter::reopen(
+    let verification = f.verification(&meta.sensors)?;
+    let mut writer = CampaignWriter::reopen(
         target,
         &meta,
         Some(f.info.clone()),
@@ -848,11 +944,13 @@ pub fn resume(
         derived,
         &mut chunk,
     )?;
+    if let Some(v) = &verification {
+        writer.set_verification(v)?;
+    }
     Ok(Resume {
         prepared,
         writer,
         rows,
-        verification_dropped: f.has_verification,
     })
 }
 

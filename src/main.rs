@@ -1326,7 +1326,8 @@ fn merge(args: &MergeArgs) -> anyhow::Result<()> {
         }
         if !report.verification_not_merged.is_empty() {
             eprintln!(
-                "warning: merge: /verification of {} is not carried into the merged file",
+                "warning: merge: {} have /verification (sweep --verify verifies in shard 1 \
+                 only); the merged file carries none of them",
                 report.verification_not_merged.join(", ")
             );
         }
@@ -1465,13 +1466,6 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     let (prepared, resume) = match (&args.resume, target.take()) {
         (Some(path), Some(t)) => {
             let r = latdyn::campaign::resume(t, &c, &stage).map_err(|e| anyhow!("{e}"))?;
-            if r.verification_dropped {
-                eprintln!(
-                    "warning: --resume: {} had /verification (sweep --verify); the completed \
-                     file no longer carries it (run sweep --verify again to measure it)",
-                    path.display()
-                );
-            }
             eprintln!(
                 "sweep --resume {}: {} variant(s) to run (not completed) of {} in the file",
                 path.display(),

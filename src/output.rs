@@ -861,6 +861,7 @@ impl CampaignWriter {
         campaign: Option<crate::campaign::CampaignInfo>,
         status: Vec<VariantStatus>,
         derived: Vec<(String, Vec<f64>)>,
+        verification: Option<VerificationData>,
         file_status: &str,
         fill: &mut FillChunks<'_>,
     ) -> Result<(), OutputError> {
@@ -876,6 +877,9 @@ impl CampaignWriter {
         }
         w.status = status;
         w.derived = derived;
+        if let Some(v) = &verification {
+            w.set_verification(v)?;
+        }
         w.write_file_with(file_status, Some(fill))
     }
 

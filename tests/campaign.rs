@@ -519,3 +519,65 @@ fn merge_of_more_shards_than_variants_skips_the_empty_ones_and_equals_the_single
     assert_eq!(r["shards"][4]["variants"], 0, "{r}");
     assert_same_campaign(&full, &merged);
 }
+
+#[test]
+fn merge_and_resume_carry_the_verification_of_shard_1() {
+    let dir = scratch("merge_verify");
+    let mut shards = Vec::new();
+    for k in [1, 2] {
+        let p = dir.join(format!("s{k}.h5"));
+        let shard = format!("{k}/2");
+        let o = run(sweep(
+            PENDULUM,
+            &["--shard", &shard, "--verify", "2", "-o", s(&p)],
+        ));
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        shards.push(p);
+    }
+    let merged = dir.join("m.h5");
+    let o = run(latdyn(&[
+        "merge",
+        s(&shards[1]),
+        s(&shards[0]),
+        "-o",
+        s(&merged),
+    ]));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let read = |p: &Path, name: &str| -> Vec<f64> {
+        rust_hdf5::H5File::open(p)
+            .unwrap()
+            .dataset(name)
+            .unwrap()
+            .read_numeric_as::<f64>()
+            .unwrap()
+    };
+    let variants = |p: &Path| -> Vec<i64> {
+        rust_hdf5::H5File::open(p)
+            .unwrap()
+            .dataset("verification/variants")
+            .unwrap()
+            .read_raw::<i64>()
+            .unwrap()
+    };
+    assert_eq!(variants(&shards[0]).len(), 2);
+    assert_eq!(variants(&shards[0]), variants(&merged));
+    for name in [
+        "verification/max_rel_diff",
+        "verification/rel_diff/angle",
+        "verification/refined_max/energy",
+        "verification/dt",
+    ] {
+        let (a, b) = (read(&shards[0], name), read(&merged, name));
+        assert!(!a.is_empty(), "{name}");
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()) && a.len() == b.len(),
+            "{name}: {a:?} vs {b:?}"
+        );
+    }
+    // a resume that reruns nothing keeps the file as it was
+    let before = dir.join("before.h5");
+    std::fs::copy(&merged, &before).unwrap();
+    let o = run(sweep(PENDULUM, &["--resume", s(&merged)]));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_same_campaign(&before, &merged);
+}
