@@ -414,6 +414,18 @@ pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
         )));
     }
     let global_index: Vec<usize> = (0..n_all).filter(|i| i % n == k - 1).collect();
+    prepare_rows(c, global_index)
+}
+
+/// [`prepare`] for the variants with these global indices (`sweep --resume`: the ones
+/// a campaign file still lacks), whatever the shard.
+pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, EnsembleError> {
+    if let Some(g) = global_index.iter().find(|&&g| g >= c.variants.len()) {
+        return Err(EnsembleError::Invalid(format!(
+            "variant {g} is outside the campaign's {} variants",
+            c.variants.len()
+        )));
+    }
     let mut models = Vec::with_capacity(global_index.len());
     for &gi in &global_index {
         let mut sets = c.base.clone();
@@ -589,7 +601,6 @@ pub fn run_verified_to(
     target: Option<OutputTarget>,
     verify: Option<&[usize]>,
 ) -> Result<CampaignRun, EnsembleError> {
-    let nv = p.models.len();
     let writer = match target {
         Some(target) => {
             let first = p.models.first().or(p.reference.as_ref());
@@ -611,10 +622,70 @@ pub fn run_verified_to(
                 time: p.time.clone(),
                 sensors: first.map(SensorMeta::of_model).unwrap_or_default(),
             };
-            Some(Mutex::new(CampaignWriter::create_at(target, &meta)?))
+            let info = identify(c, p, stage)?;
+            Some(CampaignWriter::create_with(target, &meta, Some(info))?)
         }
         None => None,
     };
+    run_core(
+        c,
+        p,
+        stop,
+        keep_history,
+        progress,
+        stage,
+        writer,
+        None,
+        verify,
+    )
+}
+
+/// `sweep --resume`: run the prepared variants (see [`prepare_rows`]) into `writer`, an
+/// existing campaign file reopened ([`CampaignWriter::reopen`]), variant `v` of `p` going
+/// to the file's row `rows[v]`; the file is finished as for [`run_to`].
+pub fn run_resume(
+    c: &Campaign,
+    p: &Prepared,
+    stop: &AtomicBool,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    stage: &Stage,
+    writer: CampaignWriter,
+    rows: &[usize],
+) -> Result<CampaignRun, EnsembleError> {
+    if rows.len() != p.models.len() {
+        return Err(EnsembleError::Invalid(format!(
+            "resume: {} rows for {} variants",
+            rows.len(),
+            p.models.len()
+        )));
+    }
+    run_core(
+        c,
+        p,
+        stop,
+        false,
+        progress,
+        stage,
+        Some(writer),
+        Some(rows),
+        None,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_core(
+    c: &Campaign,
+    p: &Prepared,
+    stop: &AtomicBool,
+    keep_history: bool,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    stage: &Stage,
+    writer: Option<CampaignWriter>,
+    rows: Option<&[usize]>,
+    verify: Option<&[usize]>,
+) -> Result<CampaignRun, EnsembleError> {
+    let nv = p.models.len();
+    let writer = writer.map(Mutex::new);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let last_flush = Mutex::new(Instant::now());
     let write_err: Mutex<Option<OutputError>> = Mutex::new(None);
@@ -637,6 +708,8 @@ pub fn run_verified_to(
             .into_par_iter()
             .map(|v| {
                 let m = &p.models[v];
+                // the variant's row in the file
+                let row = rows.map_or(v, |r| r[v]);
                 if output_failed.load(Ordering::SeqCst) {
                     return not_run(c, p, v, keep_history);
                 }
@@ -649,7 +722,7 @@ pub fn run_verified_to(
                     if let Err(e) = w
                         .lock()
                         .unwrap_or_else(|p| p.into_inner())
-                        .set_status(v, &st)
+                        .set_status(row, &st)
                     {
                         record_err(e);
                     }
@@ -741,11 +814,11 @@ pub fn run_verified_to(
                     for ti in 0..hist.t.len() {
                         let vals: Vec<Vec<f64>> =
                             hist.values.iter().map(|s| s[ti].clone()).collect();
-                        r = r.and_then(|_| g.write_samples(v, ti, &vals));
+                        r = r.and_then(|_| g.write_samples(row, ti, &vals));
                     }
-                    r = r.and_then(|_| g.set_status(v, &st));
+                    r = r.and_then(|_| g.set_status(row, &st));
                     for (n, x) in &derived {
-                        r = r.and_then(|_| g.set_derived(n, v, *x));
+                        r = r.and_then(|_| g.set_derived(n, row, *x));
                     }
                     // a flush rewrites the whole file: at most every few seconds
                     let mut last = last_flush.lock().unwrap_or_else(|p| p.into_inner());
@@ -819,6 +892,30 @@ pub fn run_verified_to(
         output_error,
         verification,
     })
+}
+
+/// The identity of campaign `c` (see [`crate::campaign`]): the same for every shard of
+/// it, whatever the thread count.
+pub fn identify(
+    c: &Campaign,
+    p: &Prepared,
+    stage: &Stage,
+) -> Result<crate::campaign::CampaignInfo, EnsembleError> {
+    let first = p.models.first().or(p.reference.as_ref());
+    let sensors = first.map(SensorMeta::of_model).unwrap_or_default();
+    crate::campaign::identify(&crate::campaign::DefinitionInput {
+        model_path: &c.model_path,
+        model_source: first.map(|m| m.source.as_str()).unwrap_or_default(),
+        set: &c.base,
+        variants: &c.variants,
+        time: &p.time,
+        sensors: &sensors,
+        accuracy: c.accuracy,
+        frequency: c.frequency_sensor.as_ref(),
+        backend: &stage.backend,
+        precision: &stage.precision,
+    })
+    .map_err(EnsembleError::Invalid)
 }
 
 /// The outcome of a variant not started because the output had already failed.

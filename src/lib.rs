@@ -12,6 +12,7 @@
 
 pub mod assembly;
 pub mod bench;
+pub mod campaign;
 pub mod element;
 pub mod ensemble;
 pub mod frequency;

@@ -40,11 +40,26 @@ enum Verb {
     Run(RunArgs),
     /// Runs over a range of parameter values
     Sweep(SweepArgs),
+    /// Merge the shard files of one campaign (`sweep --shard K/N`) into one campaign file
+    Merge(MergeArgs),
     /// Plot sensor histories of a results file
     Plot(PlotArgs),
     /// The speed-against-error suite: reference problems at several resolutions, wall
     /// time beside error, ensemble throughput; writes docs/bench/results.{md,json} and work_precision.png
     Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// shard files of one campaign (`sweep --shard K/N -o ...`), in any order
+    #[arg(required = true, value_name = "SHARD.h5")]
+    shards: Vec<PathBuf>,
+    /// the merged campaign file (HDF5)
+    #[arg(short, long, value_name = "PATH")]
+    output: PathBuf,
+    /// print the report object as JSON on stdout
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -287,6 +302,33 @@ struct SweepArgs {
     /// only shard 1 verifies
     #[arg(long, value_name = "K")]
     verify: Option<usize>,
+    /// complete this campaign file in place: run only its variants that are not
+    /// completed (missing, failed, interrupted); refused when the campaign definition
+    /// (model, --vary/--variants, --set, --accuracy, --frequency, backend, precision,
+    /// latdyn version) differs from the file's
+    #[arg(long, value_name = "CAMPAIGN.h5", conflicts_with_all = ["output", "shard", "verify"])]
+    resume: Option<PathBuf>,
+    /// print the campaign's plan instead of running it: the variant table, the shard of
+    /// each variant for --shards N, and the cost per variant from a short probe run
+    #[arg(long, conflicts_with_all = ["output", "shard", "verify", "resume"])]
+    plan: bool,
+    /// with --plan: the number of shards (array tasks) to plan for
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "plan", value_parser = parse_shards)]
+    shards: usize,
+    /// with --plan: variants probed (spread over the table, each run for 10 % of its
+    /// t_end on one thread); 0 = no probe
+    #[arg(long, value_name = "K", default_value_t = 3, requires = "plan")]
+    probe: usize,
+}
+
+/// `--shards N`: at least one, at most the variant limit.
+fn parse_shards(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=1_000_000).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{s}`: need a whole number of shards from 1 to 1000000"
+        )),
+    }
 }
 
 /// `--count`: at least one mode, and bounded so that `count + spares` cannot overflow.
@@ -491,6 +533,7 @@ fn dispatch(cli: &Cli) -> anyhow::Result<()> {
         Verb::Modes(a) => modes(a),
         Verb::Run(a) => run(a),
         Verb::Sweep(a) => sweep(a),
+        Verb::Merge(a) => merge(a),
         Verb::Plot(a) => plot(a),
         Verb::Bench(a) => bench(a),
     }
@@ -1204,6 +1247,103 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
     }
 }
 
+/// `latdyn merge`: exit 0 when every variant completed, 3 when all ran and some failed,
+/// 4 when some are missing or interrupted (resume the merged file), 2 when refused
+/// (another campaign, repeated indices, unreadable input), 5 when the output failed.
+fn merge(args: &MergeArgs) -> anyhow::Result<()> {
+    use latdyn::campaign::{self, MergeError, MergeReport};
+    let out_canon = std::fs::canonicalize(&args.output).ok();
+    for s in &args.shards {
+        if out_canon.is_some() && std::fs::canonicalize(s).ok() == out_canon {
+            bail!(
+                "merge: -o {} is one of the shard files; write the merged campaign elsewhere",
+                args.output.display()
+            );
+        }
+    }
+    let target = claim_output(&args.output)?;
+    let mut report = MergeReport::default();
+    let command_line = std::env::args().collect::<Vec<_>>().join(" ");
+    let result = campaign::merge(&args.shards, target, &command_line, &mut report);
+    let (code, message) = match &result {
+        Ok(()) if !report.missing.is_empty() || !report.interrupted.is_empty() => (
+            EXIT_INTERRUPTED,
+            format!(
+                "campaign incomplete: {} missing, {} interrupted, {} failed of {} variants; complete it with `latdyn sweep ... --resume {}`",
+                report.missing.len(),
+                report.interrupted.len(),
+                report.failed.len(),
+                report.variants,
+                args.output.display()
+            ),
+        ),
+        Ok(()) if !report.failed.is_empty() => (
+            EXIT_FAILED,
+            format!(
+                "{} of {} variants failed (see their status and message in {})",
+                report.failed.len(),
+                report.variants,
+                args.output.display()
+            ),
+        ),
+        Ok(()) => (0, String::new()),
+        Err(MergeError::Output(e)) => (EXIT_OUTPUT, e.to_string()),
+        Err(e) => (EXIT_USAGE, e.to_string()),
+    };
+    if result.is_err() {
+        report.status = "refused".into();
+    }
+    report.message = message.clone();
+    let list = |v: &[usize]| {
+        let shown: Vec<String> = v.iter().take(30).map(|g| g.to_string()).collect();
+        format!(
+            "{}{}",
+            shown.join(", "),
+            if v.len() > shown.len() { ", …" } else { "" }
+        )
+    };
+    if result.is_ok() {
+        eprintln!(
+            "merge: campaign {} ({} variants) from {} shard file(s) into {} in {:.2} s: {} completed, {} failed, {} interrupted, {} missing",
+            report.campaign_id,
+            report.variants,
+            report.shards.len(),
+            args.output.display(),
+            report.wall_s,
+            report.completed,
+            report.failed.len(),
+            report.interrupted.len(),
+            report.missing.len()
+        );
+        for (what, v) in [
+            ("missing", &report.missing),
+            ("interrupted", &report.interrupted),
+            ("failed", &report.failed),
+        ] {
+            if !v.is_empty() {
+                eprintln!("merge: {what} global indices: {}", list(v));
+            }
+        }
+        if !report.verification_not_merged.is_empty() {
+            eprintln!(
+                "warning: merge: {} have /verification (sweep --verify verifies in shard 1 \
+                 only); the merged file carries none of them",
+                report.verification_not_merged.join(", ")
+            );
+        }
+    }
+    if args.json {
+        emit(&format!(
+            "{}\n",
+            serde_json::to_string(&report).map_err(|e| anyhow!("{e}"))?
+        ))?;
+    }
+    match code {
+        0 => Ok(()),
+        c => Err(fail(c, message)),
+    }
+}
+
 /// The campaign layout of a single run (one variant, the model's parameters).
 fn single_meta(m: &Model, stage: &latdyn::ensemble::Stage) -> latdyn::output::CampaignMeta {
     use latdyn::output::*;
@@ -1267,7 +1407,12 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     // the element count decides `auto`; the model is compiled again per variant later
     let n_elem = args.model.load()?.elements.len();
     // before compiling the variants: a refused path costs nothing
-    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let mut target = args
+        .output
+        .as_deref()
+        .or(args.resume.as_deref())
+        .map(claim_output)
+        .transpose()?;
     let n_var = variants.len().max(1);
     let (stage, batcher) = choose_stage(&args.backend, n_var, n_elem, cores)?;
     let threads = args.threads.unwrap_or(if stage.make.is_some() {
@@ -1282,12 +1427,15 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         base: args.model.set.clone(),
         variants,
         threads,
-        output: args.output.clone(),
+        output: args.output.clone().or(args.resume.clone()),
         shard: args.shard,
         accuracy: args.accuracy,
         frequency_sensor,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
     };
+    if args.plan {
+        return sweep_plan(args, &c, &stage);
+    }
     // --verify K: K variants of shard 1 (the whole campaign when not sharded), checked
     // before any variant runs
     let verify_chosen: Option<Vec<usize>> = match (args.verify, args.shard) {
@@ -1315,7 +1463,22 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             }
         }
     };
-    let prepared = ensemble::prepare(&c)?;
+    let (prepared, resume) = match (&args.resume, target.take()) {
+        (Some(path), Some(t)) => {
+            let r = latdyn::campaign::resume(t, &c, &stage).map_err(|e| anyhow!("{e}"))?;
+            eprintln!(
+                "sweep --resume {}: {} variant(s) to run (not completed) of {} in the file",
+                path.display(),
+                r.rows.len(),
+                r.writer.n_variants()
+            );
+            (r.prepared, Some((r.writer, r.rows)))
+        }
+        (_, t) => {
+            target = t;
+            (ensemble::prepare(&c)?, None)
+        }
+    };
     let stop = stop_flag();
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(prepared.models.len() as u64);
@@ -1334,23 +1497,31 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         outcomes,
         output_error,
         verification,
-    } = ensemble::run_verified_to(
-        &c,
-        &prepared,
-        &stop,
-        false,
-        &|done, _| {
+    } = {
+        let progress = |done: usize, _: usize| {
             if let Some(b) = &bar {
                 b.set_position(done as u64);
             }
             if injected_panic("worker") {
                 panic!("injected panic in a sweep worker (LATDYN_FAULT_PANIC=worker)");
             }
-        },
-        &stage,
-        target,
-        verify_chosen.as_deref(),
-    )
+        };
+        match resume {
+            Some((writer, rows)) => {
+                ensemble::run_resume(&c, &prepared, &stop, &progress, &stage, writer, &rows)
+            }
+            None => ensemble::run_verified_to(
+                &c,
+                &prepared,
+                &stop,
+                false,
+                &progress,
+                &stage,
+                target,
+                verify_chosen.as_deref(),
+            ),
+        }
+    }
     .map_err(|e| anyhow!("{e}"))?;
     if let Some(b) = &batcher {
         let st = b.stats();
@@ -1547,6 +1718,117 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     .unwrap_or_default()
             ),
         ));
+    }
+    Ok(())
+}
+
+/// Fraction of t_end a `sweep --plan` probe runs.
+const PROBE_FRACTION: f64 = 0.1;
+
+/// `sweep --plan`: the variant table with each variant's shard, and the cost estimate.
+fn sweep_plan(
+    args: &SweepArgs,
+    c: &latdyn::ensemble::Campaign,
+    stage: &latdyn::ensemble::Stage,
+) -> anyhow::Result<()> {
+    use latdyn::campaign;
+    let n = c.variants.len();
+    let shards = args.shards;
+    // one compiled variant gives the time grid and sensors of the identity
+    let p = latdyn::ensemble::prepare_rows(c, vec![0])?;
+    let info = latdyn::ensemble::identify(c, &p, stage)?;
+    let m0 = &p.models[0];
+    let n_time = p.time.len();
+    let values_per_variant: usize = m0
+        .sensors
+        .iter()
+        .map(|s| latdyn::sensors::components(&s.kind).len())
+        .sum::<usize>()
+        * n_time;
+    let probes = campaign::probe(c, &campaign::probe_indices(n, args.probe), PROBE_FRACTION)?;
+    let ok: Vec<f64> = probes
+        .iter()
+        .filter(|x| x.status == "completed")
+        .map(|x| x.per_variant_s)
+        .collect();
+    // the median: the first run of a process pays for cold caches and page faults
+    let mean = (!ok.is_empty()).then(|| {
+        let mut v = ok.clone();
+        v.sort_by(f64::total_cmp);
+        if v.len() % 2 == 1 {
+            v[v.len() / 2]
+        } else {
+            (v[v.len() / 2 - 1] + v[v.len() / 2]) / 2.0
+        }
+    });
+    let max = ok
+        .iter()
+        .copied()
+        .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))));
+    let per_shard = n.div_ceil(shards);
+    let threads = args.threads.unwrap_or(1);
+    let table: Vec<serde_json::Value> = c
+        .variants
+        .iter()
+        .enumerate()
+        .map(|(g, row)| {
+            let params: serde_json::Map<String, serde_json::Value> = row
+                .iter()
+                .map(|(k, v)| (k.clone(), serde_json::json!(v)))
+                .collect();
+            serde_json::json!({"index": g, "parameters": params, "shard": g % shards + 1})
+        })
+        .collect();
+    let counts: Vec<usize> = (0..shards)
+        .map(|k| (0..n).filter(|g| g % shards == k).count())
+        .collect();
+    let v = serde_json::json!({
+        "campaign_id": info.id,
+        "campaign_hash": info.hash,
+        "variants": n,
+        "varied": info.varied,
+        "shards": shards,
+        "variants_per_shard": counts,
+        "table": table,
+        "probe": {
+            "fraction_of_t_end": PROBE_FRACTION,
+            "runs": probes,
+            "per_variant_s": mean,
+            "per_variant_is": "median of the runs",
+            "max_per_variant_s": max,
+        },
+        "estimate": {
+            "threads_per_task": threads,
+            "cpu_s": mean.map(|x| x * n as f64),
+            "per_task_wall_s": mean.map(|x| x * per_shard as f64 / threads as f64),
+            "output_values": values_per_variant * n,
+            "output_mb_uncompressed": (values_per_variant * n) as f64 * 8.0 / 1e6,
+        },
+        "backend": stage.backend,
+        "precision": stage.precision,
+    });
+    if args.model.json {
+        emit(&format!("{v}\n"))?;
+    } else {
+        println!(
+            "campaign {} ({}): {n} variants, {shards} shard(s) of ≤ {per_shard}",
+            info.id,
+            c.model_path.display()
+        );
+        for x in &probes {
+            println!(
+                "probe variant {}: {} steps to t = {:.6} in {:.4} s ({}), about {:.4} s per variant",
+                x.index, x.steps, x.t_probe, x.wall_s, x.status, x.per_variant_s
+            );
+        }
+        if let Some(mean) = mean {
+            println!(
+                "estimate: {:.1} CPU-s in all; {:.1} s per task on {threads} thread(s), plus \
+                 the merge",
+                mean * n as f64,
+                mean * per_shard as f64 / threads as f64
+            );
+        }
     }
     Ok(())
 }

@@ -45,6 +45,30 @@
 //! /derived/<NAME>          float64 [V], NaN where not set (only names ever set exist)
 //! ```
 //!
+//! A sweep (every shard of it) also records its campaign's identity (see
+//! [`crate::campaign`]; `N` = variants of the whole campaign, `Q` = varied parameters,
+//! `S` = `--set` values):
+//!
+//! ```text
+//! /                        attrs: campaign_id (str), campaign_hash (str: SHA-256 hex)
+//! /campaign/definition     str (scalar): the JSON object the hash is taken of
+//! /campaign/varied         str [Q]: names of the varied parameters
+//! /campaign/variants       float64 [N, Q]: their values, per global index
+//! /campaign/set_names      str [S], /campaign/set_values float64 [S]: the --set values
+//! /xarray                  the campaign labelled for xarray (netCDF-4 dimension scales;
+//!                          only when V > 0 and T > 0):
+//! /xarray/variant          int64 [V]: dimension scale `variant` (global indices)
+//! /xarray/time             float64 [T]: dimension scale `time` (a copy of /time)
+//! /xarray/<NAME>_component str [C]: dimension scale, the component names of a sensor
+//! /xarray/<PARAM>          float64 [V]: each varied parameter, on `variant`
+//! /xarray/<NAME>           hard link to /sensors/<NAME>, dims (variant, time,
+//!                          <NAME>_component); attr coordinates = the varied parameters
+//! /xarray/<DERIVED>, /xarray/state   hard links to /derived/*, /status/state (variant)
+//! ```
+//!
+//! Attaching the scales gives /sensors/*, /derived/* and /status/state a
+//! `DIMENSION_LIST` attribute (and `coordinates`); the samples are not copied.
+//!
 //! A campaign run with `sweep --verify K` also has (README "Discretisation error of a
 //! campaign"; `K` =
 //! variants verified, `W` = warnings):
@@ -118,8 +142,19 @@ use std::path::{Path, PathBuf};
 use rust_hdf5::format::messages::filter::{apply_filters, FilterPipeline};
 use rust_hdf5::{DatatypeMessage, H5File, H5Group};
 
+/// Writes the sensor chunks of a streamed file into its `/sensors` datasets (see
+/// [`CampaignWriter::write_streamed`]).
+pub type FillChunks<'a> = dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError> + 'a;
+
 /// Target number of f64 values in one sensor chunk (512 KiB uncompressed).
 pub const CHUNK_ELEMENTS: usize = 65_536;
+
+/// Time samples per chunk of a sensor with `n_comp` components over `n_time` output
+/// times: chunks are [1, this, n_comp], whatever the number of variants, so a shard's
+/// chunks are the whole campaign's chunks.
+pub fn chunk_times(n_comp: usize, n_time: usize) -> usize {
+    (CHUNK_ELEMENTS / n_comp.max(1)).clamp(1, n_time.max(1))
+}
 
 /// Deflate level of the sensor datasets (after the shuffle filter).
 const DEFLATE_LEVEL: u32 = 4;
@@ -604,6 +639,8 @@ pub struct CampaignWriter {
     dirty: bool,
     /// `/verification`, once set
     verification: Option<VerificationData>,
+    /// `/campaign` and the root attributes `campaign_id`, `campaign_hash` (sweeps)
+    campaign: Option<crate::campaign::CampaignInfo>,
 }
 
 /// Whether `name` can name a sensor or derived quantity in every output format: an HDF5
@@ -651,6 +688,29 @@ impl CampaignWriter {
 
     /// [`create`](Self::create) on a path claimed earlier (before slow preparations).
     pub fn create_at(target: OutputTarget, meta: &CampaignMeta) -> Result<Self, OutputError> {
+        Self::create_with(target, meta, None)
+    }
+
+    /// [`create_at`](Self::create_at) for a campaign with an identity (a sweep): the
+    /// first file written already carries `campaign_id`, `campaign_hash` and `/campaign`.
+    pub fn create_with(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+    ) -> Result<Self, OutputError> {
+        let mut w = Self::build(target, meta, campaign, true)?;
+        w.flush()?;
+        Ok(w)
+    }
+
+    /// The writer's state for `meta`, nothing written yet; without `samples`, no sensor
+    /// sample is held in memory (a streamed file: [`write_streamed`](Self::write_streamed)).
+    fn build(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+        samples: bool,
+    ) -> Result<Self, OutputError> {
         let n_variants = meta.parameter_values.len();
         let n_time = meta.time.len();
         for (v, row) in meta.parameter_values.iter().enumerate() {
@@ -696,22 +756,27 @@ impl CampaignWriter {
                     s.units.len()
                 )));
             }
-            let chunk_t = (CHUNK_ELEMENTS / n_comp).clamp(1, n_time.max(1));
+            let chunk_t = chunk_times(n_comp, n_time);
             let chunks_t = n_time.div_ceil(chunk_t);
-            let n_chunks = n_variants * chunks_t;
+            let n_chunks = if samples { n_variants * chunks_t } else { 0 };
+            let n_values = if samples {
+                n_variants * n_time * n_comp
+            } else {
+                0
+            };
             sensors.push(SensorBuf {
                 meta: s.clone(),
                 n_comp,
                 chunk_t,
                 chunks_t,
-                data: vec![f64::NAN; n_variants * n_time * n_comp],
+                data: vec![f64::NAN; n_values],
                 compressed: vec![None; n_chunks],
                 dirty: vec![false; n_chunks],
             });
         }
         let path = target.path().to_path_buf();
         let tmp_path = target.tmp_path();
-        let mut w = CampaignWriter {
+        let w = CampaignWriter {
             path,
             tmp_path,
             target,
@@ -728,9 +793,99 @@ impl CampaignWriter {
             pipeline: FilterPipeline::shuffle_deflate(8, DEFLATE_LEVEL),
             dirty: true,
             verification: None,
+            campaign,
         };
-        w.flush()?;
         Ok(w)
+    }
+
+    /// Reopen a campaign file to complete it (`sweep --resume`): the writer starts with
+    /// `meta`, `status` and `derived` as given, and each sensor chunk (sensor index in
+    /// `meta.sensors`, row, chunk index along time) as `chunk` returns it: the stored,
+    /// filtered bytes, kept as they are (so the samples stay bit for bit), or `None` for a
+    /// chunk that reads NaN (a row to be run again). Nothing is written until the next
+    /// flush or finish.
+    pub fn reopen(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+        status: Vec<VariantStatus>,
+        derived: Vec<(String, Vec<f64>)>,
+        chunk: &mut dyn FnMut(usize, usize, usize) -> Result<Option<Vec<u8>>, OutputError>,
+    ) -> Result<Self, OutputError> {
+        let mut w = Self::build(target, meta, campaign, true)?;
+        if status.len() != w.n_variants || derived.iter().any(|(_, d)| d.len() != w.n_variants) {
+            return Err(OutputError::Invalid(format!(
+                "reopen: status and derived need {} entries",
+                w.n_variants
+            )));
+        }
+        w.status = status;
+        w.derived = derived;
+        for (k, s) in w.sensors.iter_mut().enumerate() {
+            for row in 0..w.n_variants {
+                for ct in 0..s.chunks_t {
+                    s.compressed[row * s.chunks_t + ct] = chunk(k, row, ct)?;
+                }
+            }
+        }
+        w.dirty = false;
+        Ok(w)
+    }
+
+    /// Set the parameter values of `variant` (`sweep --resume`: a row a merge could not
+    /// fill from a shard gets the values of the model it is run with).
+    pub fn set_parameters(&mut self, variant: usize, values: &[f64]) -> Result<(), OutputError> {
+        self.check_variant(variant)?;
+        if values.len() != self.meta.parameter_names.len() {
+            return Err(OutputError::Invalid(format!(
+                "variant {variant}: {} parameter values for {} names",
+                values.len(),
+                self.meta.parameter_names.len()
+            )));
+        }
+        self.meta.parameter_values[variant] = values.to_vec();
+        self.dirty = true;
+        Ok(())
+    }
+
+    /// Write a whole campaign file at `target` in one pass, its sensor samples coming from
+    /// `fill` instead of memory: `fill` gets the `/sensors` datasets (in `meta.sensors`
+    /// order, chunked [1, ≤T, C] as [`create`](Self::create) makes them) and writes
+    /// their chunks (`write_chunk_raw_at`), so the memory is what `fill` holds (`merge`:
+    /// one chunk), not the campaign. Everything else (status, derived, `/campaign`) is
+    /// given here. The file appears at `target` atomically when complete.
+    #[allow(clippy::too_many_arguments)]
+    pub fn write_streamed(
+        target: OutputTarget,
+        meta: &CampaignMeta,
+        campaign: Option<crate::campaign::CampaignInfo>,
+        status: Vec<VariantStatus>,
+        derived: Vec<(String, Vec<f64>)>,
+        verification: Option<VerificationData>,
+        file_status: &str,
+        fill: &mut FillChunks<'_>,
+    ) -> Result<(), OutputError> {
+        let mut w = Self::build(target, meta, campaign, false)?;
+        if status.len() != w.n_variants || derived.iter().any(|(_, d)| d.len() != w.n_variants) {
+            return Err(OutputError::Invalid(format!(
+                "write_streamed: status and derived need {} entries",
+                w.n_variants
+            )));
+        }
+        for (name, _) in &derived {
+            check_name("derived", name)?;
+        }
+        w.status = status;
+        w.derived = derived;
+        if let Some(v) = &verification {
+            w.set_verification(v)?;
+        }
+        w.write_file_with(file_status, Some(fill))
+    }
+
+    /// Variants (rows) of the file.
+    pub fn n_variants(&self) -> usize {
+        self.n_variants
     }
 
     /// Path of the campaign file.
@@ -922,6 +1077,14 @@ impl CampaignWriter {
     }
 
     fn write_file(&mut self, status: &str) -> Result<(), OutputError> {
+        self.write_file_with(status, None)
+    }
+
+    fn write_file_with(
+        &mut self,
+        status: &str,
+        fill: Option<&mut FillChunks<'_>>,
+    ) -> Result<(), OutputError> {
         self.compress_dirty()?;
         let io_err = |path: &Path| {
             let path = path.to_path_buf();
@@ -931,7 +1094,7 @@ impl CampaignWriter {
         // directory, a full disk or a permission problem.
         let _ = fs::remove_file(&self.tmp_path);
         fs::File::create_new(&self.tmp_path).map_err(io_err(&self.path))?;
-        let result = self.write_hdf5(status);
+        let result = self.write_hdf5(status, fill);
         if let Err(e) = result {
             let _ = fs::remove_file(&self.tmp_path);
             return Err(e);
@@ -940,7 +1103,11 @@ impl CampaignWriter {
     }
 
     /// Write the whole file to the temporary path (closed and synced on return).
-    fn write_hdf5(&self, status: &str) -> Result<(), OutputError> {
+    fn write_hdf5(
+        &self,
+        status: &str,
+        fill: Option<&mut FillChunks<'_>>,
+    ) -> Result<(), OutputError> {
         let tmp = self.tmp_path.clone();
         let h5 = |what: &str| -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError> {
             let what = what.to_string();
@@ -955,7 +1122,7 @@ impl CampaignWriter {
             .best_effort_locking()
             .create(&tmp)
             .map_err(h5("create"))?;
-        match self.write_objects(&file, status, &h5) {
+        match self.write_objects(&file, status, &h5, fill) {
             Ok(()) => file.close().map_err(h5("close")),
             Err(e) => {
                 // closed explicitly: dropping it would print rust-hdf5's own warning
@@ -967,7 +1134,13 @@ impl CampaignWriter {
     }
 
     /// Every object of the file (see the layout in the module docs).
-    fn write_objects<E>(&self, file: &H5File, status: &str, h5: &E) -> Result<(), OutputError>
+    fn write_objects<E>(
+        &self,
+        file: &H5File,
+        status: &str,
+        h5: &E,
+        fill: Option<&mut FillChunks<'_>>,
+    ) -> Result<(), OutputError>
     where
         E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
     {
@@ -1029,6 +1202,7 @@ impl CampaignWriter {
 
         // /sensors
         let sensors = file.create_group("sensors").map_err(h5("/sensors"))?;
+        let mut datasets = Vec::with_capacity(self.sensors.len());
         for s in &self.sensors {
             let what = format!("/sensors/{}", s.meta.name);
             let shape = [nv, self.n_time, s.n_comp];
@@ -1057,6 +1231,12 @@ impl CampaignWriter {
             let units: Vec<&str> = s.meta.units.iter().map(String::as_str).collect();
             set_ds_string_array_attr(&ds, "components", &comps).map_err(h5(&what))?;
             set_ds_string_array_attr(&ds, "units", &units).map_err(h5(&what))?;
+            datasets.push(ds);
+        }
+        if let Some(fill) = fill {
+            if nv > 0 && self.n_time > 0 {
+                fill(&datasets)?;
+            }
         }
 
         // /status
@@ -1116,8 +1296,153 @@ impl CampaignWriter {
             write_verification(file, v, h5)?;
         }
 
+        if let Some(c) = &self.campaign {
+            write_campaign(file, c, h5)?;
+            if nv > 0 && self.n_time > 0 {
+                self.write_xarray(file, c, &datasets, h5)?;
+            }
+        }
+
         Ok(())
     }
+
+    /// `/xarray` (see the layout in the module docs): netCDF-4 dimension scales, so
+    /// `xarray.open_dataset(path, engine="h5netcdf", group="xarray")` names every axis.
+    /// The sensors, derived quantities and states are hard links to the datasets above
+    /// (no copy); attaching the scales adds `DIMENSION_LIST` to them, which h5py readers
+    /// ignore.
+    fn write_xarray<E>(
+        &self,
+        file: &H5File,
+        c: &crate::campaign::CampaignInfo,
+        sensors: &[rust_hdf5::H5Dataset],
+        h5: &E,
+    ) -> Result<(), OutputError>
+    where
+        E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
+    {
+        let e = |what: &str| h5(&format!("/xarray{what}"));
+        let m = &self.meta;
+        let g = file.create_group("xarray").map_err(e(""))?;
+        // one name space in the group: the first use of a name wins (a parameter named
+        // like a sensor keeps its value in /parameters only)
+        let mut used: Vec<String> = vec!["variant".into(), "time".into()];
+        let gi: Vec<i64> = self
+            .global_index
+            .iter()
+            .map(|&x| i64::try_from(x).unwrap_or(i64::MAX))
+            .collect();
+        let variant = g
+            .new_dataset::<i64>()
+            .shape([gi.len()])
+            .create("variant")
+            .map_err(e("/variant"))?;
+        variant.write_raw(&gi).map_err(e("/variant"))?;
+        variant.set_scale(Some("variant")).map_err(e("/variant"))?;
+        set_ds_string_attr(
+            &variant,
+            "long_name",
+            "global index of the variant in the campaign",
+        )
+        .map_err(e("/variant"))?;
+        let time = g
+            .new_dataset::<f64>()
+            .shape([self.n_time])
+            .create("time")
+            .map_err(e("/time"))?;
+        time.write_raw(&m.time).map_err(e("/time"))?;
+        time.set_scale(Some("time")).map_err(e("/time"))?;
+        set_ds_string_attr(&time, "units", "s").map_err(e("/time"))?;
+        let mut coords = Vec::new();
+        for name in &c.varied {
+            let Some(k) = m.parameter_names.iter().position(|p| p == name) else {
+                continue;
+            };
+            if used.contains(name) {
+                continue;
+            }
+            let what = format!("/{name}");
+            let col: Vec<f64> = m.parameter_values.iter().map(|row| row[k]).collect();
+            let ds = g
+                .new_dataset::<f64>()
+                .shape([col.len()])
+                .create(name)
+                .map_err(e(&what))?;
+            ds.write_raw(&col).map_err(e(&what))?;
+            ds.attach_scale(0, &variant).map_err(e(&what))?;
+            used.push(name.clone());
+            coords.push(name.as_str());
+        }
+        let coords = coords.join(" ");
+        for (s, ds) in self.sensors.iter().zip(sensors) {
+            let name = &s.meta.name;
+            let dim = format!("{name}_component");
+            if used.contains(name) || used.contains(&dim) {
+                continue;
+            }
+            let what = format!("/{name}");
+            let comps: Vec<&str> = s.meta.components.iter().map(String::as_str).collect();
+            let cds = g.write_vlen_strings(&dim, &comps).map_err(e(&what))?;
+            cds.set_scale(Some(&dim)).map_err(e(&what))?;
+            g.link(name, &format!("/sensors/{name}"))
+                .map_err(e(&what))?;
+            ds.attach_scale(0, &variant).map_err(e(&what))?;
+            ds.attach_scale(1, &time).map_err(e(&what))?;
+            ds.attach_scale(2, &cds).map_err(e(&what))?;
+            if !coords.is_empty() {
+                set_ds_string_attr(ds, "coordinates", &coords).map_err(e(&what))?;
+            }
+            used.push(name.clone());
+            used.push(dim);
+        }
+        let mut per_variant: Vec<(String, String)> = self
+            .derived
+            .iter()
+            .map(|(n, _)| (n.clone(), format!("/derived/{n}")))
+            .collect();
+        per_variant.push(("state".into(), "/status/state".into()));
+        for (name, path) in per_variant {
+            if used.contains(&name) {
+                continue;
+            }
+            let what = format!("/{name}");
+            let ds = file.dataset_writer(&path[1..]).map_err(e(&what))?;
+            g.link(&name, &path).map_err(e(&what))?;
+            ds.attach_scale(0, &variant).map_err(e(&what))?;
+            if !coords.is_empty() {
+                set_ds_string_attr(&ds, "coordinates", &coords).map_err(e(&what))?;
+            }
+            used.push(name);
+        }
+        Ok(())
+    }
+}
+
+/// `campaign_id`, `campaign_hash` and `/campaign` (see the layout in the module docs).
+fn write_campaign<E>(
+    file: &H5File,
+    c: &crate::campaign::CampaignInfo,
+    h5: &E,
+) -> Result<(), OutputError>
+where
+    E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
+{
+    file.set_attr_string("campaign_id", &c.id)
+        .map_err(h5("root attrs"))?;
+    file.set_attr_string("campaign_hash", &c.hash)
+        .map_err(h5("root attrs"))?;
+    let g = file.create_group("campaign").map_err(h5("/campaign"))?;
+    write_scalar_string(&g, "definition", &c.definition).map_err(h5("/campaign/definition"))?;
+    let varied: Vec<&str> = c.varied.iter().map(String::as_str).collect();
+    write_strings(&g, "varied", &varied).map_err(h5("/campaign/varied"))?;
+    let values: Vec<f64> = c.variants.iter().flatten().copied().collect();
+    write_f64(&g, "variants", &[c.variants.len(), varied.len()], &values)
+        .map_err(h5("/campaign/variants"))?;
+    let names: Vec<&str> = c.set.iter().map(|(n, _)| n.as_str()).collect();
+    write_strings(&g, "set_names", &names).map_err(h5("/campaign/set_names"))?;
+    let values: Vec<f64> = c.set.iter().map(|(_, x)| *x).collect();
+    write_f64(&g, "set_values", &[values.len()], &values).map_err(h5("/campaign/set_values"))?;
+    Ok(())
 }
 
 /// `/verification` (see the layout in the module docs).

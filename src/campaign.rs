@@ -1,0 +1,1105 @@
+//! Campaign identity: what makes the shard files of one campaign one campaign again
+//! (README "Campaigns on a cluster").
+//!
+//! A sweep's *definition* is everything that decides its variants' numbers: the model
+//! file's text, the `--set` values, the table of varied parameter values (every variant of
+//! the whole campaign, not only a shard's), the output time grid, the sensors, the solver
+//! overrides (`--accuracy`), the derived quantities asked for (`--frequency`), the element
+//! backend and precision, and the latdyn version. It is written as a JSON object (keys
+//! sorted, floats in Rust's round-trip `{:?}` form) and hashed with SHA-256; the
+//! hash is stored in every sweep and shard file (`campaign_hash`), together with a
+//! readable identifier (`campaign_id` = model file stem + the hash's first 12 hex
+//! digits). What does not change a number is left out: the thread count, the shard, the
+//! model file's path, the output path and the command line, so array tasks on different
+//! nodes, with different thread counts or mount points, agree on the campaign without
+//! talking to each other.
+
+use std::path::{Path, PathBuf};
+
+use rust_hdf5::{H5Dataset, H5File};
+use sha2::{Digest, Sha256};
+
+use crate::output::{
+    CampaignMeta, CampaignWriter, OutputError, OutputTarget, SensorMeta, VariantState,
+    VariantStatus,
+};
+
+/// A campaign's identity and the variant table it was defined with (stored under
+/// `/campaign` and in the root attributes `campaign_id`, `campaign_hash`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CampaignInfo {
+    /// model file stem + the first 12 hex digits of `hash`
+    pub id: String,
+    /// SHA-256 (hex) of `definition`
+    pub hash: String,
+    /// the definition, a JSON object (see the module docs)
+    pub definition: String,
+    /// names of the varied parameters (the `--variants` columns, then the `--vary` names)
+    pub varied: Vec<String>,
+    /// per variant of the whole campaign (global index order), its varied values
+    pub variants: Vec<Vec<f64>>,
+    /// the `--set` overrides shared by every variant
+    pub set: Vec<(String, f64)>,
+}
+
+/// What a campaign is defined by (see the module docs).
+pub struct DefinitionInput<'a> {
+    pub model_path: &'a Path,
+    pub model_source: &'a str,
+    pub set: &'a [(String, f64)],
+    pub variants: &'a [Vec<(String, f64)>],
+    pub time: &'a [f64],
+    pub sensors: &'a [SensorMeta],
+    pub accuracy: Option<f64>,
+    /// `--frequency`: sensor name and component index
+    pub frequency: Option<&'a (String, usize)>,
+    pub backend: &'a str,
+    pub precision: &'a str,
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// `{:?}` of an f64 is the shortest text that parses back to the same bits (and spells
+/// NaN and infinities, which JSON numbers cannot).
+fn num(x: f64) -> String {
+    format!("{x:?}")
+}
+
+/// The campaign's definition, its hash and identifier. Fails if the variant rows do not
+/// all name the same parameters in the same order (a caller bug: `ensemble::variants`
+/// builds them so).
+pub fn identify(d: &DefinitionInput) -> Result<CampaignInfo, String> {
+    let varied: Vec<String> = d
+        .variants
+        .first()
+        .map(|r| r.iter().map(|(n, _)| n.clone()).collect())
+        .unwrap_or_default();
+    let mut table = Sha256::new();
+    let mut variants = Vec::with_capacity(d.variants.len());
+    for (i, row) in d.variants.iter().enumerate() {
+        if row.len() != varied.len() || row.iter().zip(&varied).any(|((n, _), v)| n != v) {
+            return Err(format!(
+                "variant {i} names other parameters than variant 0 ({})",
+                varied.join(", ")
+            ));
+        }
+        for (_, x) in row {
+            table.update(x.to_le_bytes());
+        }
+        variants.push(row.iter().map(|(_, x)| *x).collect::<Vec<f64>>());
+    }
+    let mut time = Sha256::new();
+    for t in d.time {
+        time.update(t.to_le_bytes());
+    }
+    let mut set = d.set.to_vec();
+    // the order of --set options does not change the campaign; a repeated name keeps its
+    // order (the last one given wins when the model is compiled)
+    set.sort_by(|a, b| a.0.cmp(&b.0));
+    let def = serde_json::json!({
+        "latdyn_version": env!("CARGO_PKG_VERSION"),
+        "model_sha256": hex(&Sha256::digest(d.model_source.as_bytes())),
+        "set": set.iter().map(|(n, x)| serde_json::json!([n, num(*x)])).collect::<Vec<_>>(),
+        "varied": varied,
+        "variants": d.variants.len(),
+        "variants_sha256": hex(&table.finalize()),
+        "time": {
+            "n": d.time.len(),
+            "first": d.time.first().map(|t| num(*t)),
+            "last": d.time.last().map(|t| num(*t)),
+            "sha256": hex(&time.finalize()),
+        },
+        "sensors": d.sensors.iter().map(|s| format!(
+            "{}({})[{}]", s.name, s.components.join(","), s.units.join(",")
+        )).collect::<Vec<_>>(),
+        "accuracy": d.accuracy.map(num),
+        "frequency": d.frequency.map(|(n, c)| format!("{n}.{c}")),
+        "backend": d.backend,
+        "precision": d.precision,
+    });
+    // serde_json's map is a BTreeMap (no `preserve_order` feature): keys come out sorted,
+    // so the text, and with it the hash, depends on the content only
+    let definition = def.to_string();
+    let hash = hex(&Sha256::digest(definition.as_bytes()));
+    let stem = d
+        .model_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "campaign".into());
+    Ok(CampaignInfo {
+        id: format!("{stem}-{}", &hash[..12]),
+        hash,
+        definition,
+        varied,
+        variants,
+        set,
+    })
+}
+
+/// What differs between two definitions (their JSON texts), one entry per top-level key,
+/// e.g. `model_sha256` or `variants_sha256`; empty when they are equal or unreadable.
+pub fn differences(a: &str, b: &str) -> Vec<String> {
+    let (Ok(a), Ok(b)) = (
+        serde_json::from_str::<serde_json::Value>(a),
+        serde_json::from_str::<serde_json::Value>(b),
+    ) else {
+        return Vec::new();
+    };
+    let (Some(a), Some(b)) = (a.as_object(), b.as_object()) else {
+        return Vec::new();
+    };
+    let mut keys: Vec<&String> = a.keys().chain(b.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    keys.into_iter()
+        .filter(|k| a.get(*k) != b.get(*k))
+        .map(|k| {
+            let show = |v: Option<&serde_json::Value>| {
+                v.map(|v| {
+                    let s = v.to_string();
+                    if s.chars().count() > 80 {
+                        format!("{}…", s.chars().take(80).collect::<String>())
+                    } else {
+                        s
+                    }
+                })
+                .unwrap_or_else(|| "absent".into())
+            };
+            format!("{k}: {} vs {}", show(a.get(k)), show(b.get(k)))
+        })
+        .collect()
+}
+
+/// A campaign file as `merge` and `sweep --resume` read it: its identity and the small
+/// per-variant datasets (the sensor samples stay on disk).
+pub struct CampaignFile {
+    pub path: PathBuf,
+    pub file: H5File,
+    pub info: CampaignInfo,
+    pub model_source: String,
+    pub model_path: String,
+    pub backend: String,
+    pub precision: String,
+    pub adapter: String,
+    pub parameter_names: Vec<String>,
+    /// [V][P]
+    pub parameter_values: Vec<Vec<f64>>,
+    pub time: Vec<f64>,
+    pub global_index: Vec<usize>,
+    pub status: Vec<VariantStatus>,
+    pub derived: Vec<(String, Vec<f64>)>,
+    /// the file has `/verification` (`sweep --verify`)
+    pub has_verification: bool,
+}
+
+/// Why a file could not be read as a campaign file (path and reason).
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {message}", path.display())]
+pub struct ReadError {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+fn text(bytes: Vec<u8>) -> String {
+    String::from_utf8_lossy(&bytes)
+        .trim_end_matches('\0')
+        .to_string()
+}
+
+impl CampaignFile {
+    /// Open a sweep or shard file and read its identity and per-variant status. Files
+    /// without `campaign_hash` (written by `run`, `statics --path`, `sweep --path` or a
+    /// latdyn before campaign identities) are refused with that reason.
+    pub fn open(path: &Path) -> Result<CampaignFile, ReadError> {
+        let err = |message: String| ReadError {
+            path: path.to_path_buf(),
+            message,
+        };
+        if !path.is_file() {
+            return Err(err("no such file".into()));
+        }
+        let file =
+            H5File::open(path).map_err(|e| err(format!("not a readable HDF5 file ({e})")))?;
+        if file.attr_string("format").ok().as_deref() != Some("latdyn-campaign") {
+            return Err(err(
+                "not a latdyn campaign file (no root attribute format = \
+                            \"latdyn-campaign\")"
+                    .into(),
+            ));
+        }
+        let hash = file.attr_string("campaign_hash").map_err(|_| {
+            err(
+                "has no campaign identity (root attribute campaign_hash): only `sweep` files \
+                 written by this latdyn version or later have one; rerun the sweep"
+                    .into(),
+            )
+        })?;
+        let id = file.attr_string("campaign_id").unwrap_or_default();
+        let ds = |name: &str| {
+            file.dataset(name)
+                .map_err(|e| err(format!("no /{name} ({e})")))
+        };
+        let f64s = |name: &str| -> Result<Vec<f64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_raw::<f64>()
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        let i64s = |name: &str| -> Result<Vec<i64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_numeric_as::<i64>()
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        let strings = |name: &str| -> Result<Vec<String>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_strings()
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        let scalar_text = |name: &str| -> Result<String, ReadError> {
+            ds(name)?
+                .read_raw_bytes()
+                .map(text)
+                .map_err(|e| err(format!("reading /{name}: {e}")))
+        };
+        // before anything is allocated per variant of the campaign
+        let limit = crate::model::Limits::from_env().map_err(err)?.variants;
+        let n_declared = ds("campaign/variants")?
+            .shape()
+            .first()
+            .copied()
+            .unwrap_or(0);
+        if n_declared as u64 > limit {
+            return Err(err(format!(
+                "/campaign/variants: {}",
+                crate::model::limits::exceeded(
+                    "variants of the campaign",
+                    n_declared as f64,
+                    "variants",
+                    limit
+                )
+            )));
+        }
+        let definition = scalar_text("campaign/definition")?;
+        let varied = strings("campaign/varied")?;
+        let table = f64s("campaign/variants")?;
+        let n_total = ds("campaign/variants")?
+            .shape()
+            .first()
+            .copied()
+            .unwrap_or(0);
+        let variants: Vec<Vec<f64>> = if varied.is_empty() {
+            vec![Vec::new(); n_total]
+        } else {
+            table.chunks(varied.len()).map(<[f64]>::to_vec).collect()
+        };
+        let set: Vec<(String, f64)> = strings("campaign/set_names")?
+            .into_iter()
+            .zip(f64s("campaign/set_values")?)
+            .collect();
+        let parameter_names = strings("parameters/names")?;
+        let values = f64s("parameters/values")?;
+        let global_index: Vec<usize> = i64s("status/global_index")?
+            .into_iter()
+            .map(|g| usize::try_from(g).unwrap_or(usize::MAX))
+            .collect();
+        let nv = global_index.len();
+        let parameter_values: Vec<Vec<f64>> = if parameter_names.is_empty() {
+            vec![Vec::new(); nv]
+        } else {
+            values
+                .chunks(parameter_names.len())
+                .map(<[f64]>::to_vec)
+                .collect()
+        };
+        if parameter_values.len() != nv {
+            return Err(err(format!(
+                "/parameters/values has {} rows for {nv} variants",
+                parameter_values.len()
+            )));
+        }
+        if let Some(g) = global_index.iter().find(|&&g| g >= n_total) {
+            return Err(err(format!(
+                "global index {g} outside the campaign's {n_total} variants"
+            )));
+        }
+        let col = |name: &str| -> Result<Vec<f64>, ReadError> {
+            let v = f64s(name)?;
+            if v.len() != nv {
+                return Err(err(format!(
+                    "/{name} has {} entries for {nv} variants",
+                    v.len()
+                )));
+            }
+            Ok(v)
+        };
+        let state = i64s("status/state")?;
+        let message = strings("status/message")?;
+        let warnings = strings("status/warnings")?;
+        let steps = i64s("status/steps")?;
+        let rejected = i64s("status/rejected_steps")?;
+        let (t_fail, wall_s) = (col("status/t_fail")?, col("status/wall_s")?);
+        let (growth, loss) = (col("status/energy_growth")?, col("status/energy_loss")?);
+        let tee = col("status/time_error_estimate")?;
+        if [
+            state.len(),
+            message.len(),
+            warnings.len(),
+            steps.len(),
+            rejected.len(),
+        ]
+        .iter()
+        .any(|&n| n != nv)
+        {
+            return Err(err(format!(
+                "/status datasets do not all have {nv} entries"
+            )));
+        }
+        let mut status = Vec::with_capacity(nv);
+        for v in 0..nv {
+            status.push(VariantStatus {
+                state: VariantState::from_code(state[v])
+                    .ok_or_else(|| err(format!("/status/state[{v}] = {} is no state", state[v])))?,
+                message: message[v].clone(),
+                t_fail: t_fail[v],
+                steps: u64::try_from(steps[v]).unwrap_or(0),
+                rejected_steps: u64::try_from(rejected[v]).unwrap_or(0),
+                wall_s: wall_s[v],
+                energy_growth: growth[v],
+                energy_loss: loss[v],
+                time_error_estimate: tee[v],
+                warnings: warnings[v].clone(),
+            });
+        }
+        let root = file.root_group();
+        let mut derived = Vec::new();
+        if let Ok(g) = root.group("derived") {
+            let mut names = g.dataset_names().unwrap_or_default();
+            names.sort();
+            for n in names {
+                derived.push((n.clone(), col(&format!("derived/{n}"))?));
+            }
+        }
+        let has_verification = root.group("verification").is_ok();
+        Ok(CampaignFile {
+            path: path.to_path_buf(),
+            info: CampaignInfo {
+                id,
+                hash,
+                definition,
+                varied,
+                variants,
+                set,
+            },
+            model_source: scalar_text("model/source")?,
+            model_path: scalar_text("model/path")?,
+            backend: file.attr_string("backend").unwrap_or_default(),
+            precision: file.attr_string("precision").unwrap_or_default(),
+            adapter: file.attr_string("adapter").unwrap_or_default(),
+            parameter_names,
+            parameter_values,
+            time: f64s("time")?,
+            global_index,
+            status,
+            derived,
+            has_verification,
+            file,
+        })
+    }
+
+    /// The `/sensors/<name>` dataset.
+    pub fn sensor(&self, name: &str) -> Result<H5Dataset, ReadError> {
+        self.file
+            .dataset(&format!("sensors/{name}"))
+            .map_err(|e| ReadError {
+                path: self.path.clone(),
+                message: format!("no /sensors/{name} ({e})"),
+            })
+    }
+
+    /// `/verification` as `sweep --verify` wrote it (None if the file has none); the
+    /// component names of each sensor come from `sensors` (the campaign's).
+    pub fn verification(
+        &self,
+        sensors: &[SensorMeta],
+    ) -> Result<Option<crate::output::VerificationData>, ReadError> {
+        if !self.has_verification {
+            return Ok(None);
+        }
+        let err = |message: String| ReadError {
+            path: self.path.clone(),
+            message,
+        };
+        let ds = |name: &str| {
+            self.file
+                .dataset(&format!("verification/{name}"))
+                .map_err(|e| err(format!("no /verification/{name} ({e})")))
+        };
+        let f64s = |name: &str| -> Result<Vec<f64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_raw::<f64>()
+                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
+        };
+        let i64s = |name: &str| -> Result<Vec<i64>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_numeric_as::<i64>()
+                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
+        };
+        let strings = |name: &str| -> Result<Vec<String>, ReadError> {
+            let d = ds(name)?;
+            if d.total_elements() == 0 {
+                return Ok(Vec::new());
+            }
+            d.read_strings()
+                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
+        };
+        let one = |name: &str| -> Result<f64, ReadError> {
+            f64s(name)?
+                .first()
+                .copied()
+                .ok_or_else(|| err(format!("/verification/{name} is empty")))
+        };
+        let pairs = |v: Vec<f64>| v.chunks(2).map(|c| [c[0], c[c.len() - 1]]).collect();
+        let elements: Vec<[usize; 2]> = i64s("elements")?
+            .chunks(2)
+            .map(|c| [c[0].max(0) as usize, c[c.len() - 1].max(0) as usize])
+            .collect();
+        let mut out = crate::output::VerificationData {
+            target: one("target")?,
+            target_source: ds("target_source")?
+                .read_raw_bytes()
+                .map(text)
+                .map_err(|e| err(format!("reading /verification/target_source: {e}")))?,
+            variants: i64s("variants")?
+                .into_iter()
+                .map(|g| g.max(0) as usize)
+                .collect(),
+            status: strings("status")?,
+            wall_s: f64s("wall_s")?,
+            dt: pairs(f64s("dt")?),
+            elements,
+            max_rel_diff: one("max_rel_diff")?,
+            warnings: strings("warnings")?,
+            sensors: Vec::new(),
+        };
+        for s in sensors {
+            let get = |g: &str| f64s(&format!("{g}/{}", s.name));
+            out.sensors.push(crate::output::VerificationSensor {
+                name: s.name.clone(),
+                components: s.components.clone(),
+                rel_diff: get("rel_diff")?,
+                refined_min: get("refined_min")?,
+                refined_max: get("refined_max")?,
+            });
+        }
+        Ok(Some(out))
+    }
+
+    /// The variants of the whole campaign.
+    pub fn n_total(&self) -> usize {
+        self.info.variants.len()
+    }
+}
+
+/// What `merge` found (printed by `merge --json`). Indices are global (0-based, as
+/// `--shard` writes them).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct MergeReport {
+    pub campaign_id: String,
+    pub campaign_hash: String,
+    /// variants of the whole campaign
+    pub variants: usize,
+    pub completed: usize,
+    /// in no shard, or never started in its shard (state pending)
+    pub missing: Vec<usize>,
+    pub failed: Vec<usize>,
+    /// stopped by a signal (state interrupted), or started in a shard that was killed
+    /// (state running)
+    pub interrupted: Vec<usize>,
+    /// held by more than one shard (the merge is refused)
+    pub duplicated: Vec<usize>,
+    /// what `sweep --resume` on the merged file runs: missing, failed and interrupted
+    pub to_resume: Vec<usize>,
+    pub shards: Vec<ShardReport>,
+    /// shards with `/verification` (`sweep --verify`) when more than one has it (then
+    /// the merged file has none; with one, it is carried over)
+    pub verification_not_merged: Vec<String>,
+    pub output: String,
+    /// "complete" (every variant completed or failed), "incomplete" or "refused"
+    pub status: String,
+    pub message: String,
+    pub wall_s: f64,
+}
+
+/// One input of a merge.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ShardReport {
+    pub path: String,
+    pub variants: usize,
+    pub completed: usize,
+}
+
+/// Why a merge refused to write.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    #[error("{0}")]
+    Refused(String),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+/// Merge the shard files `inputs` of one campaign into `target` (see README "Campaigns
+/// on a cluster"): every input must carry the same `campaign_hash`, and no global index
+/// may be in two of them. The merged file has the layout of a single-process sweep of
+/// the whole campaign (one row per global index, in order): the sensor chunks are copied
+/// as stored (compressed bytes, no decoding), so the samples are bit for bit the shards';
+/// a variant in no shard is pending with NaN samples and its parameter values compiled
+/// from the stored model text. Memory: the per-variant status of the campaign and one
+/// chunk (≤ 512 KiB) of samples. `report` is filled as far as the merge got, also when it
+/// is refused.
+pub fn merge(
+    inputs: &[PathBuf],
+    target: OutputTarget,
+    command_line: &str,
+    report: &mut MergeReport,
+) -> Result<(), MergeError> {
+    let t0 = std::time::Instant::now();
+    report.output = target.path().display().to_string();
+    if inputs.is_empty() {
+        return Err(MergeError::Refused("merge: no shard files given".into()));
+    }
+    // pass 1: identities and indices, one file open at a time
+    let mut owner: Vec<Option<(usize, usize)>> = Vec::new();
+    let mut first: Option<CampaignFile> = None;
+    let mut duplicated = Vec::new();
+    let mut with_verification = Vec::new();
+    for (k, p) in inputs.iter().enumerate() {
+        let f = CampaignFile::open(p)?;
+        match &first {
+            None => {
+                report.campaign_id = f.info.id.clone();
+                report.campaign_hash = f.info.hash.clone();
+                report.variants = f.n_total();
+                owner = vec![None; f.n_total()];
+            }
+            Some(f0) if f0.info.hash != f.info.hash => {
+                let diff = differences(&f0.info.definition, &f.info.definition);
+                return Err(MergeError::Refused(format!(
+                    "{} belongs to another campaign than {} (campaign {} vs {}){}",
+                    p.display(),
+                    f0.path.display(),
+                    f.info.id,
+                    f0.info.id,
+                    if diff.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; what differs: {}", diff.join("; "))
+                    }
+                )));
+            }
+            Some(_) => {}
+        }
+        let mut completed = 0;
+        for (row, &g) in f.global_index.iter().enumerate() {
+            if owner[g].is_some() {
+                duplicated.push(g);
+            }
+            owner[g] = Some((k, row));
+            completed += usize::from(f.status[row].state == VariantState::Completed);
+        }
+        report.shards.push(ShardReport {
+            path: p.display().to_string(),
+            variants: f.global_index.len(),
+            completed,
+        });
+        if f.has_verification {
+            with_verification.push(k);
+        }
+        if first.is_none() {
+            first = Some(f);
+        }
+    }
+    let first = first.expect("at least one input");
+    if !duplicated.is_empty() {
+        duplicated.sort_unstable();
+        duplicated.dedup();
+        report.duplicated = duplicated.clone();
+        return Err(MergeError::Refused(format!(
+            "{} global indices are in more than one shard ({}{}): each variant must come from \
+             one shard only; leave out the repeated file",
+            duplicated.len(),
+            duplicated
+                .iter()
+                .take(20)
+                .map(|g| g.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            if duplicated.len() > 20 { ", …" } else { "" }
+        )));
+    }
+    let n = first.n_total();
+    let np = first.parameter_names.len();
+    // rows in no shard: parameters from the stored model text, as the sweep compiled them
+    let mut parameter_values = vec![vec![f64::NAN; np]; n];
+    let mut status = vec![VariantStatus::default(); n];
+    let mut derived: Vec<(String, Vec<f64>)> = Vec::new();
+    for (k, p) in inputs.iter().enumerate() {
+        let f = if k == 0 {
+            None
+        } else {
+            Some(CampaignFile::open(p)?)
+        };
+        let f = f.as_ref().unwrap_or(&first);
+        for (row, &g) in f.global_index.iter().enumerate() {
+            parameter_values[g] = f.parameter_values[row].clone();
+            status[g] = f.status[row].clone();
+        }
+        for (name, col) in &f.derived {
+            let i = match derived.iter().position(|(d, _)| d == name) {
+                Some(i) => i,
+                None => {
+                    derived.push((name.clone(), vec![f64::NAN; n]));
+                    derived.len() - 1
+                }
+            };
+            for (row, &g) in f.global_index.iter().enumerate() {
+                derived[i].1[g] = col[row];
+            }
+        }
+    }
+    for g in 0..n {
+        if owner[g].is_none() {
+            let mut sets = first.info.set.clone();
+            sets.extend(
+                first
+                    .info
+                    .varied
+                    .iter()
+                    .cloned()
+                    .zip(first.info.variants[g].iter().copied()),
+            );
+            if let Ok(m) = crate::model::compile_str(&first.model_source, &first.model_path, &sets)
+            {
+                if m.params.len() == np {
+                    parameter_values[g] = m.params.iter().map(|(_, v)| *v).collect();
+                }
+            }
+        }
+    }
+    for (g, st) in status.iter().enumerate() {
+        match (owner[g], st.state) {
+            (None, _) | (_, VariantState::Pending) => report.missing.push(g),
+            (_, VariantState::Completed) => report.completed += 1,
+            (_, VariantState::Failed) => report.failed.push(g),
+            (_, VariantState::Interrupted | VariantState::Running) => report.interrupted.push(g),
+        }
+    }
+    report.to_resume = (0..n)
+        .filter(|&g| status[g].state != VariantState::Completed || owner[g].is_none())
+        .collect();
+    let incomplete = !report.missing.is_empty() || !report.interrupted.is_empty();
+    // the sensors and their components/units as the model defines them (the hash says
+    // every shard has the same)
+    let sensors = {
+        let mut sets = first.info.set.clone();
+        if let Some(row) = first.info.variants.first() {
+            sets.extend(first.info.varied.iter().cloned().zip(row.iter().copied()));
+        }
+        let m = crate::model::compile_str(&first.model_source, &first.model_path, &sets).map_err(
+            |e| {
+                MergeError::Refused(format!(
+                    "{}: the stored model does not compile: {e}",
+                    first.path.display()
+                ))
+            },
+        )?;
+        SensorMeta::of_model(&m)
+    };
+    let meta = CampaignMeta {
+        command_line: command_line.to_string(),
+        model_path: first.model_path.clone(),
+        model_source: first.model_source.clone(),
+        backend: first.backend.clone(),
+        precision: first.precision.clone(),
+        adapter: first.adapter.clone(),
+        threads: 0,
+        parameter_names: first.parameter_names.clone(),
+        parameter_values,
+        global_index: (0..n).collect(),
+        time: first.time.clone(),
+        sensors: sensors.clone(),
+    };
+    let info = first.info.clone();
+    drop(first);
+    // `sweep --verify` verifies in shard 1 only: its figures are the campaign's
+    let verification = match with_verification.as_slice() {
+        [k] => CampaignFile::open(&inputs[*k])?.verification(&sensors)?,
+        more => {
+            report.verification_not_merged = more
+                .iter()
+                .map(|&k| inputs[k].display().to_string())
+                .collect();
+            None
+        }
+    };
+    let mut fill = |out: &[H5Dataset]| -> Result<(), OutputError> {
+        let bad = |p: &Path, m: String| OutputError::Invalid(format!("{}: {m}", p.display()));
+        for p in inputs {
+            let f = CampaignFile::open(p).map_err(|e| bad(p, e.message))?;
+            for (s, ds) in sensors.iter().zip(out) {
+                let src = f.sensor(&s.name).map_err(|e| bad(p, e.message))?;
+                let rows = f.global_index.len();
+                if rows == 0 {
+                    continue;
+                }
+                let n_time = ds.shape()[1];
+                let nc = s.components.len();
+                let chunk_t = crate::output::chunk_times(nc, n_time);
+                let (cs, co) = (src.chunk_dims(), Some(vec![1, chunk_t, nc]));
+                if cs != co || src.shape()[1..] != ds.shape()[1..] {
+                    return Err(bad(
+                        p,
+                        format!(
+                            "/sensors/{}: shape {:?} chunks {cs:?}, the merged file has {:?} \
+                             chunks {co:?}",
+                            s.name,
+                            src.shape(),
+                            ds.shape(),
+                        ),
+                    ));
+                }
+                let chunks_t = n_time.div_ceil(chunk_t);
+                for (row, &g) in f.global_index.iter().enumerate() {
+                    for ct in 0..chunks_t {
+                        // a chunk never written (a variant that never ran) is absent in
+                        // the shard and stays absent (reads NaN) in the merged file
+                        let (bytes, mask) = match src.read_chunk_raw_at(&[row, ct, 0]) {
+                            Ok(x) => x,
+                            Err(e) if e.to_string().contains("has not been written") => continue,
+                            Err(e) => {
+                                return Err(bad(
+                                    p,
+                                    format!("reading /sensors/{} chunk {row},{ct}: {e}", s.name),
+                                ))
+                            }
+                        };
+                        ds.write_chunk_raw_at(&[g, ct, 0], &bytes, mask)
+                            .map_err(|e| bad(p, format!("copying /sensors/{}: {e}", s.name)))?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    };
+    CampaignWriter::write_streamed(
+        target,
+        &meta,
+        Some(info),
+        status,
+        derived,
+        verification,
+        if incomplete {
+            "interrupted"
+        } else {
+            "complete"
+        },
+        &mut fill,
+    )?;
+    report.status = if incomplete { "incomplete" } else { "complete" }.into();
+    report.wall_s = t0.elapsed().as_secs_f64();
+    Ok(())
+}
+
+/// What `sweep --resume FILE` runs, and the file reopened to take it.
+pub struct Resume {
+    pub prepared: crate::ensemble::Prepared,
+    pub writer: CampaignWriter,
+    /// per variant of `prepared`, its row in the file
+    pub rows: Vec<usize>,
+}
+
+/// Reopen the campaign file at `target` for `sweep --resume`: refuses a file of another
+/// campaign definition than `c` run on `stage` (naming what differs), then prepares the
+/// file's variants that are not completed (pending, running, failed, interrupted, or
+/// missing in a merge) and reopens the file with their rows cleared (state pending, NaN
+/// samples); every completed row keeps its stored bytes.
+pub fn resume(
+    target: OutputTarget,
+    c: &crate::ensemble::Campaign,
+    stage: &crate::ensemble::Stage,
+) -> Result<Resume, MergeError> {
+    let f = CampaignFile::open(target.path())?;
+    let rerun: Vec<bool> = f
+        .status
+        .iter()
+        .map(|s| s.state != VariantState::Completed)
+        .collect();
+    let rows: Vec<usize> = (0..rerun.len()).filter(|&r| rerun[r]).collect();
+    // an index outside the campaign given now changes the definition: the hash tells
+    let gis: Vec<usize> = rows
+        .iter()
+        .map(|&r| f.global_index[r])
+        .filter(|&g| g < c.variants.len())
+        .collect();
+    let prepared = crate::ensemble::prepare_rows(c, gis)
+        .map_err(|e| MergeError::Refused(format!("--resume {}: {e}", f.path.display())))?;
+    let now = crate::ensemble::identify(c, &prepared, stage)
+        .map_err(|e| MergeError::Refused(e.to_string()))?;
+    if now.hash != f.info.hash {
+        let diff = differences(&f.info.definition, &now.definition);
+        return Err(MergeError::Refused(format!(
+            "--resume {}: the campaign definition changed (file: campaign {}, now: {}){}; \
+             resume with the same model file, --vary/--variants, --set, --accuracy, \
+             --frequency, backend and precision, and the same latdyn version",
+            f.path.display(),
+            f.info.id,
+            now.id,
+            if diff.is_empty() {
+                String::new()
+            } else {
+                format!("; what differs: {}", diff.join("; "))
+            }
+        )));
+    }
+    let layout = prepared
+        .models
+        .first()
+        .or(prepared.reference.as_ref())
+        .ok_or_else(|| MergeError::Refused("--resume: no model compiled".into()))?;
+    let mut parameter_values = f.parameter_values.clone();
+    for (v, &r) in rows.iter().enumerate() {
+        parameter_values[r] = prepared.models[v].params.iter().map(|(_, x)| *x).collect();
+    }
+    let meta = CampaignMeta {
+        command_line: c.command_line.clone(),
+        model_path: f.model_path.clone(),
+        model_source: f.model_source.clone(),
+        backend: stage.backend.clone(),
+        precision: stage.precision.clone(),
+        adapter: stage.adapter.clone(),
+        threads: c.threads,
+        parameter_names: f.parameter_names.clone(),
+        parameter_values,
+        global_index: f.global_index.clone(),
+        time: f.time.clone(),
+        sensors: SensorMeta::of_model(layout),
+    };
+    let mut status = f.status.clone();
+    let mut derived = f.derived.clone();
+    for &r in &rows {
+        status[r] = VariantStatus::default();
+        for (_, d) in &mut derived {
+            d[r] = f64::NAN;
+        }
+    }
+    let datasets = meta
+        .sensors
+        .iter()
+        .map(|s| f.sensor(&s.name))
+        .collect::<Result<Vec<_>, _>>()?;
+    let path = f.path.clone();
+    let mut chunk = |k: usize, row: usize, ct: usize| -> Result<Option<Vec<u8>>, OutputError> {
+        if rerun[row] {
+            return Ok(None);
+        }
+        match datasets[k].read_chunk_raw_at(&[row, ct, 0]) {
+            Ok((bytes, 0)) => Ok(Some(bytes)),
+            Ok((_, mask)) => Err(OutputError::Invalid(format!(
+                "{}: /sensors/{} chunk {row},{ct} skips filters (mask {mask}): not written by \
+                 latdyn",
+                path.display(),
+                meta.sensors[k].name
+            ))),
+            Err(e) if e.to_string().contains("has not been written") => Ok(None),
+            Err(e) => Err(OutputError::Invalid(format!(
+                "{}: reading /sensors/{} chunk {row},{ct}: {e}",
+                path.display(),
+                meta.sensors[k].name
+            ))),
+        }
+    };
+    let verification = f.verification(&meta.sensors)?;
+    let mut writer = CampaignWriter::reopen(
+        target,
+        &meta,
+        Some(f.info.clone()),
+        status,
+        derived,
+        &mut chunk,
+    )?;
+    if let Some(v) = &verification {
+        writer.set_verification(v)?;
+    }
+    Ok(Resume {
+        prepared,
+        writer,
+        rows,
+    })
+}
+
+/// One variant run for a fraction of its time span by `sweep --plan` (see [`probe`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Probe {
+    /// global index
+    pub index: usize,
+    /// the probe ran from 0 to this time (the variant's t_end × fraction)
+    pub t_probe: f64,
+    pub t_end: f64,
+    /// compiling the variant's model [s] (a sweep compiles every variant once)
+    pub compile_s: f64,
+    /// the probe's time integration to `t_probe` [s]
+    pub wall_s: f64,
+    pub steps: usize,
+    /// "completed", or why the probe stopped
+    pub status: String,
+    /// estimate of the whole variant: compile + setup + rate × t_end [s], from runs to
+    /// t_probe / 2 and t_probe (wall = setup + rate × t)
+    pub per_variant_s: f64,
+}
+
+/// Run the variants `indices` of `c` from 0 to `fraction` / 2 and `fraction` × t_end on
+/// one CPU thread and time them: the cost per variant of the campaign, extrapolated
+/// linearly in the simulated time (exact for fixed steps; with `--accuracy` the step may change later in
+/// the run). Each probe runs the sweep's own code path, so a variant that fails early
+/// says so here.
+pub fn probe(
+    c: &crate::ensemble::Campaign,
+    indices: &[usize],
+    fraction: f64,
+) -> Result<Vec<Probe>, crate::ensemble::EnsembleError> {
+    let mut out = Vec::with_capacity(indices.len());
+    for &g in indices {
+        let t0 = std::time::Instant::now();
+        let mut sets = c.base.clone();
+        sets.extend(c.variants[g].iter().cloned());
+        let mut m = crate::model::load(&c.model_path, &sets)?;
+        if c.accuracy.is_some() {
+            m.solver.accuracy = c.accuracy;
+        }
+        let compile_s = t0.elapsed().as_secs_f64();
+        let t_end = m.solver.t_end;
+        // two runs, to half and to all of the probe span: wall = setup + rate × t, so
+        // the setup (integrator, initial state) is not extrapolated with the time
+        let mut runs = Vec::new();
+        for f in [fraction / 2.0, fraction] {
+            m.solver.t_end = t_end * f;
+            let t1 = std::time::Instant::now();
+            let (_, stats, err) = crate::solver::dynamics::run_with(&m, None, None, |_, _| {});
+            runs.push((m.solver.t_end, t1.elapsed().as_secs_f64(), stats.steps, err));
+        }
+        let (ta, wa, _, _) = runs[0];
+        let (tb, wb, steps, ref err) = runs[1];
+        let rate = if tb > ta && wb > wa {
+            (wb - wa) / (tb - ta)
+        } else if tb > 0.0 {
+            wb / tb
+        } else {
+            0.0
+        };
+        let setup = (wa - rate * ta).max(0.0);
+        out.push(Probe {
+            index: g,
+            t_probe: tb,
+            t_end,
+            compile_s,
+            wall_s: wb,
+            steps,
+            status: err
+                .as_ref()
+                .map_or_else(|| "completed".to_string(), |e| e.to_string()),
+            per_variant_s: compile_s + setup + rate * t_end,
+        });
+    }
+    Ok(out)
+}
+
+/// Which variants a probe of `k` runs among `n`: spread evenly, first and last included.
+pub fn probe_indices(n: usize, k: usize) -> Vec<usize> {
+    if n == 0 || k == 0 {
+        return Vec::new();
+    }
+    if k == 1 || n == 1 {
+        return vec![0];
+    }
+    let mut v: Vec<usize> = (0..k.min(n))
+        .map(|i| (i * (n - 1) + (k.min(n) - 1) / 2) / (k.min(n) - 1))
+        .collect();
+    v.dedup();
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn input<'a>(
+        src: &'a str,
+        set: &'a [(String, f64)],
+        variants: &'a [Vec<(String, f64)>],
+        time: &'a [f64],
+    ) -> DefinitionInput<'a> {
+        DefinitionInput {
+            model_path: Path::new("models/m.toml"),
+            model_source: src,
+            set,
+            variants,
+            time,
+            sensors: &[],
+            accuracy: None,
+            frequency: None,
+            backend: "cpu",
+            precision: "f64",
+        }
+    }
+
+    #[test]
+    fn hash_changes_with_every_part_of_the_definition_and_not_with_set_order() {
+        let v = |x: f64| vec![vec![("omega".to_string(), 1.0)], vec![("omega".into(), x)]];
+        let set = vec![("a".to_string(), 1.0), ("b".to_string(), 2.0)];
+        let set_rev: Vec<_> = set.iter().rev().cloned().collect();
+        let (v2, v3) = (v(2.0), v(3.0));
+        let t = [0.0, 0.5, 1.0];
+        let base = identify(&input("x = 1", &set, &v2, &t)).unwrap();
+        assert_eq!(base.hash.len(), 64);
+        assert!(base.id.starts_with("m-") && base.id.len() == 2 + 12);
+        assert_eq!(base, identify(&input("x = 1", &set_rev, &v2, &t)).unwrap());
+        let others = [
+            identify(&input("x = 2", &set, &v2, &t)).unwrap(),
+            identify(&input("x = 1", &set[..1], &v2, &t)).unwrap(),
+            identify(&input("x = 1", &set, &v3, &t)).unwrap(),
+            identify(&input("x = 1", &set, &v2, &t[..2])).unwrap(),
+        ];
+        for (o, what) in others.iter().zip(["model", "set", "variants", "time"]) {
+            assert_ne!(o.hash, base.hash, "{what}");
+            assert!(!differences(&base.definition, &o.definition).is_empty());
+        }
+        let d = differences(&base.definition, &others[2].definition);
+        assert_eq!(d.len(), 1, "{d:?}");
+        assert!(d[0].starts_with("variants_sha256"), "{d:?}");
+    }
+
+    #[test]
+    fn probes_spread_over_the_table_with_first_and_last() {
+        assert_eq!(probe_indices(10, 3), vec![0, 5, 9]);
+        assert_eq!(probe_indices(2, 3), vec![0, 1]);
+        assert_eq!(probe_indices(1, 3), vec![0]);
+        assert!(probe_indices(5, 0).is_empty());
+    }
+}
