@@ -47,7 +47,7 @@ pub const PROBLEMS: [&str; 8] = [
 ];
 
 /// Problems a bare `latdyn bench` leaves out: `accuracy` (the time-error ladder with
-/// `--accuracy` runs) takes about 20 minutes.
+/// `--accuracy` runs) takes about 35 minutes.
 const OPT_IN: [&str; 1] = ["accuracy"];
 
 /// One run of a ladder.

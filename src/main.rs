@@ -68,7 +68,7 @@ struct BenchArgs {
     #[arg(long)]
     quick: bool,
     /// run only these problems (repeatable): rotating_cantilever, rollup, bend45, spinup,
-    /// minimast, time_error, accuracy (not in a bare `bench`: ~20 min), ensemble
+    /// minimast, time_error, accuracy (not in a bare `bench`: ~35 min), ensemble
     #[arg(long = "only", value_name = "PROBLEM")]
     only: Vec<String>,
     /// directory of the shipped models
