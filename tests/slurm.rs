@@ -345,9 +345,11 @@ fn slurm_array_merge_equals_the_single_sweep_and_a_cancelled_task_is_resumed() {
     let mut cluster = Cluster::start(&work.join("cluster"));
     let latdyn = PathBuf::from(env!("CARGO_BIN_EXE_latdyn"));
     let model = root().join("models/rotating_cantilever.toml");
-    // 48 variants of ~0.1-0.4 s each (test profile): tasks of several seconds, so one can
-    // be cancelled after its first flush (2 s) and before its end
-    let campaign = format!("{} --vary omega=1:5:{VARIANTS} --set t_end=4", s(&model));
+    // 48 variants of ~0.5-1 s each (test profile): a task of 12 runs ~10 s, so it can be
+    // cancelled after its first flush (2 s after its first variant) and well before its
+    // end. (With t_end = 4 a task took ~2.5 s on an idle machine and sometimes finished
+    // before the cancel arrived.)
+    let campaign = format!("{} --vary omega=1:5:{VARIANTS} --set t_end=20", s(&model));
 
     let reference = work.join("single.h5");
     let _ = std::fs::remove_file(&reference);
