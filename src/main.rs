@@ -1721,6 +1721,28 @@ fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
             "free_dofs": m.n_eq,
             "sensors": sensors,
         });
+        let mut v = v;
+        if !m.repeats.is_empty() {
+            // only for files with repeats: the output of every other file is unchanged
+            v["beams"] = serde_json::json!(m.beams.len());
+            v["repeats"] = serde_json::json!(m
+                .repeats
+                .iter()
+                .map(|r| {
+                    let mut o = serde_json::json!({
+                        "path": r.path,
+                        "index": r.index,
+                        "from": r.from,
+                        "to": r.to,
+                        "iterations": r.iterations,
+                    });
+                    for (k, n) in latdyn::model::repeat::KINDS.iter().zip(r.counts) {
+                        o[*k] = serde_json::json!(n);
+                    }
+                    o
+                })
+                .collect::<Vec<_>>());
+        }
         format!("{v}\n")
     } else {
         let mut s = format!("model {} ({})\n", m.name, m.path);
@@ -1740,6 +1762,27 @@ fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
         );
         s += &format!("  loads     {}\n", m.loads.len());
         s += &format!("  sensors   {} [{}]\n", sensors.len(), sensors.join(", "));
+        for r in &m.repeats {
+            let made: Vec<String> = latdyn::model::repeat::KINDS
+                .iter()
+                .zip(r.counts)
+                .filter(|(_, n)| *n > 0)
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect();
+            s += &format!(
+                "  repeat    {} {} = {}..{}: {} iterations, generated {}\n",
+                r.path,
+                r.index,
+                r.from,
+                r.to,
+                r.iterations,
+                if made.is_empty() {
+                    "nothing of its own".to_string()
+                } else {
+                    made.join(", ")
+                }
+            );
+        }
         if !m.params.is_empty() {
             let p: Vec<String> = m.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
             s += &format!("  params    {}\n", p.join(" "));

@@ -326,6 +326,8 @@ pub struct Model {
     pub n_eq: usize,
     /// `[initial]`: rigid rotation (omega, center) the free dofs start in
     pub initial_rotation: Option<(Vec3, Vec3)>,
+    /// what each `[[repeat]]` generated (empty for a file without repeats)
+    pub repeats: Vec<super::repeat::RepeatSummary>,
 }
 
 impl Model {
