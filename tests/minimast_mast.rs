@@ -103,7 +103,7 @@ fn two_bays_deployed_together_both_extend_turn_and_lock() {
         let b = hist(&m, &h, &format!("batten{j}"));
         let z = b[i][2] - b[0][2];
         let turn_j = b[i][5].rem_euclid(2.0 * PI);
-        let mid = hist(&m, &h, &format!("mid_hinge{j}"));
+        let mid = hist(&m, &h, &format!("mid_hinge{j}_1"));
         eprintln!(
             "bay {j}: Z = {z:.6} m, turn {:.2} deg (rigid members: {:.2}), mid-hinge {:.3} deg; {} steps",
             turn_j.to_degrees(),
@@ -145,8 +145,8 @@ fn two_bays_deployed_one_after_the_other_lock_in_turn() {
     let (h, _, err) = run(&m, |_, _| {});
     assert!(err.is_none(), "{err:?}");
     let (i1, i2) = (at(&h.t, 1.0), at(&h.t, 2.0));
-    let mid1 = hist(&m, &h, "mid_hinge1");
-    let mid2 = hist(&m, &h, "mid_hinge2");
+    let mid1 = hist(&m, &h, "mid_hinge1_1");
+    let mid2 = hist(&m, &h, "mid_hinge2_1");
     let b1 = hist(&m, &h, "batten1");
     let b2 = hist(&m, &h, "batten2");
     // at T: bay 1 out and locked, bay 2 still packaged on top of it
