@@ -1168,6 +1168,12 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "free_dofs": m.n_eq,
             "matrix_nnz": stats.matrix_nnz,
             "factor_nnz": stats.factor_nnz,
+            "stage_times_s": {
+                "element": stats.times.element_s,
+                "assembly": stats.times.assembly_s,
+                "factorization": stats.times.factorization_s,
+                "output": stats.times.output_s,
+            },
             "energy_growth": stats.energy_growth,
             "energy_loss": stats.energy_loss,
             "time_error_estimate": stats.time_error_estimate,
