@@ -619,6 +619,10 @@ impl Compiler<'_> {
             });
         }
 
+        let mut hinge_of_dof = vec![None; dofs.len()];
+        for (h, hinge) in hinges.iter().enumerate() {
+            hinge_of_dof[hinge.dof] = Some(h);
+        }
         let mut n_eq = 0;
         for d in dofs.iter_mut() {
             if matches!(d.mode, DofMode::Free) {
@@ -722,6 +726,7 @@ impl Compiler<'_> {
             n_eq,
             initial_rotation,
             repeats,
+            hinge_of_dof,
         })
     }
 
