@@ -166,3 +166,59 @@ fn two_bays_deployed_one_after_the_other_lock_in_turn() {
     assert!(((b1[i2][2] - b1[0][2]) - l0()).abs() < 1e-9);
     assert!(((b2[i2][2] - b2[0][2]) - 2.0 * l0()).abs() < 1e-9);
 }
+
+/// Length of a beam from its end nodes' reference positions.
+fn span(m: &latdyn::model::Model, beam: &str) -> f64 {
+    let b = m.beams.iter().find(|b| b.name == beam).expect("beam");
+    let (a, c) = (m.x0[b.nodes[0]], m.x0[*b.nodes.last().unwrap()]);
+    ((a[0] - c[0]).powi(2) + (a[1] - c[1]).powi(2) + (a[2] - c[2]).powi(2)).sqrt()
+}
+
+#[test]
+fn deployed_geometry_keeps_the_member_lengths_and_is_a_stable_symmetric_mast() {
+    let sets = [("bays", 2.0), ("elements", 2.0)];
+    let packaged = shipped("minimast.toml", &sets);
+    let deployed = shipped("minimast.toml", &[sets[0], sets[1], ("deployed", 1.0)]);
+    // rigid members: every longeron and diagonal half has its packaged length in the
+    // deployed geometry, which is built from the turn and the stroke, not from lengths.
+    // Tolerance 0.05 mm: the table's 5 digits put B1 100.488 deg from A1 with radii equal
+    // to 1e-5 m, and the straight diagonal is 0.02 mm shorter than its two halves.
+    for j in 1..=2 {
+        for k in 1..=3 {
+            let l = format!("b{j}_longeron{k}");
+            let (lp, ld) = (span(&packaged, &l), span(&deployed, &l));
+            assert!((lp - ld).abs() < 5e-5, "{l}: {lp} packaged, {ld} deployed");
+            let (a, b) = (format!("b{j}_diagonal{k}_a"), format!("b{j}_diagonal{k}_b"));
+            let whole_p = span(&packaged, &a) + span(&packaged, &b);
+            let whole_d = span(&deployed, &a) + span(&deployed, &b);
+            assert!((whole_p - whole_d).abs() < 5e-5, "diagonal {j}.{k}");
+            // the longerons stand vertical: upper joint above the lower one
+            let b_ = deployed.beams.iter().find(|x| x.name == l).unwrap();
+            let (p, q) = (
+                deployed.x0[b_.nodes[0]],
+                deployed.x0[*b_.nodes.last().unwrap()],
+            );
+            assert!((p[0] - q[0]).hypot(p[1] - q[1]) < 1e-4, "{l} not vertical");
+        }
+    }
+    // batten 2 sits two deployed pitches L + 2 zj up, minus zj (its joints' plane)
+    let top = deployed
+        .bodies
+        .iter()
+        .find(|b| b.name == "batten2")
+        .unwrap();
+    assert!((top.x0[2] - (2.0 * (l0() + 2.0 * 0.02379) - 0.02379)).abs() < 1e-12);
+    // modes of the unstressed deployed mast: no zero-frequency (mechanism) mode, and the
+    // first bending frequency comes as a pair (three-fold symmetry about z, battens with
+    // Ixx = Iyy), equal to round-off (measured 4e-13 relative; 1e-9 leaves room)
+    let s = latdyn::joint::State::new(&deployed);
+    let md = latdyn::solver::modes::lowest_modes(&deployed, &s, 4).expect("modes");
+    let f = &md.frequencies_hz;
+    eprintln!("2 deployed bays: {:?} Hz", &f[..4]);
+    assert!(
+        md.zero_frequency.iter().all(|z| !z),
+        "{:?}",
+        md.zero_frequency
+    );
+    assert!(f[0] > 1.0 && (f[1] - f[0]).abs() < 1e-9 * f[0], "{f:?}");
+}
