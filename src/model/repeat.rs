@@ -25,8 +25,11 @@ type Result<T> = std::result::Result<T, ModelError>;
 /// `None` (written outside any repeat) or the template path and the index values.
 #[derive(Default)]
 pub struct Origins {
-    kinds: Vec<(&'static str, Vec<Option<(String, String)>>)>,
+    kinds: Vec<(&'static str, Vec<Origin>)>,
 }
+
+/// Template path and index values of one generated entry (`None`: written by hand).
+type Origin = Option<(String, String)>;
 
 impl Origins {
     /// The error of an expanded spec with its field path moved to the template and the
@@ -92,7 +95,7 @@ struct Expander<'a> {
     text: &'a str,
     params: &'a dyn Scope,
     out: Spec,
-    origins: [Vec<Option<(String, String)>>; 7],
+    origins: [Vec<Origin>; 7],
     summary: Vec<RepeatSummary>,
 }
 
