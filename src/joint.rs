@@ -104,11 +104,7 @@ impl State {
     }
 
     fn frozen(&self, model: &Model, d: usize) -> bool {
-        model
-            .hinges
-            .iter()
-            .zip(&self.locked)
-            .any(|(h, &l)| l && h.dof == d)
+        model.hinge_of_dof[d].is_some_and(|h| self.locked[h])
     }
 }
 

@@ -1208,6 +1208,15 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
             "steps": stats.steps,
             "rejected_steps": stats.rejected_steps,
             "newton_iterations": stats.newton_iterations,
+            "free_dofs": m.n_eq,
+            "matrix_nnz": stats.matrix_nnz,
+            "factor_nnz": stats.factor_nnz,
+            "stage_times_s": {
+                "element": stats.times.element_s,
+                "assembly": stats.times.assembly_s,
+                "factorization": stats.times.factorization_s,
+                "output": stats.times.output_s,
+            },
             "energy_growth": stats.energy_growth,
             "energy_loss": stats.energy_loss,
             "time_error_estimate": stats.time_error_estimate,
@@ -2003,6 +2012,28 @@ fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
             "free_dofs": m.n_eq,
             "sensors": sensors,
         });
+        let mut v = v;
+        if !m.repeats.is_empty() {
+            // only for files with repeats: the output of every other file is unchanged
+            v["beams"] = serde_json::json!(m.beams.len());
+            v["repeats"] = serde_json::json!(m
+                .repeats
+                .iter()
+                .map(|r| {
+                    let mut o = serde_json::json!({
+                        "path": r.path,
+                        "index": r.index,
+                        "from": r.from,
+                        "to": r.to,
+                        "iterations": r.iterations,
+                    });
+                    for (k, n) in latdyn::model::repeat::KINDS.iter().zip(r.counts) {
+                        o[*k] = serde_json::json!(n);
+                    }
+                    o
+                })
+                .collect::<Vec<_>>());
+        }
         format!("{v}\n")
     } else {
         let mut s = format!("model {} ({})\n", m.name, m.path);
@@ -2022,6 +2053,27 @@ fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
         );
         s += &format!("  loads     {}\n", m.loads.len());
         s += &format!("  sensors   {} [{}]\n", sensors.len(), sensors.join(", "));
+        for r in &m.repeats {
+            let made: Vec<String> = latdyn::model::repeat::KINDS
+                .iter()
+                .zip(r.counts)
+                .filter(|(_, n)| *n > 0)
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect();
+            s += &format!(
+                "  repeat    {} {} = {}..{}: {} iterations, generated {}\n",
+                r.path,
+                r.index,
+                r.from,
+                r.to,
+                r.iterations,
+                if made.is_empty() {
+                    "nothing of its own".to_string()
+                } else {
+                    made.join(", ")
+                }
+            );
+        }
         if !m.params.is_empty() {
             let p: Vec<String> = m.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
             s += &format!("  params    {}\n", p.join(" "));

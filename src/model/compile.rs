@@ -377,6 +377,22 @@ impl Compiler<'_> {
 
     fn compile(mut self, spec: &Spec, overrides: &[(String, f64)]) -> Result<Model> {
         self.parameters(spec, overrides)?;
+        if spec.repeat.is_empty() {
+            // a file without repeats is compiled from its parsed spec, untouched
+            return self.compile_expanded(spec, Vec::new());
+        }
+        let (expanded, origins, summary) =
+            super::repeat::expand(spec, self.file, self.text, &self.params, &self.limits)?;
+        self.compile_expanded(&expanded, summary)
+            .map_err(|e| origins.relabel(e))
+    }
+
+    /// [`Self::compile`] after the parameters are resolved and the repeats expanded.
+    fn compile_expanded(
+        self,
+        spec: &Spec,
+        repeats: Vec<super::repeat::RepeatSummary>,
+    ) -> Result<Model> {
         let sections = self.sections(spec)?;
 
         self.nonempty(spec)?;
@@ -603,6 +619,10 @@ impl Compiler<'_> {
             });
         }
 
+        let mut hinge_of_dof = vec![None; dofs.len()];
+        for (h, hinge) in hinges.iter().enumerate() {
+            hinge_of_dof[hinge.dof] = Some(h);
+        }
         let mut n_eq = 0;
         for d in dofs.iter_mut() {
             if matches!(d.mode, DofMode::Free) {
@@ -705,6 +725,8 @@ impl Compiler<'_> {
             solver,
             n_eq,
             initial_rotation,
+            repeats,
+            hinge_of_dof,
         })
     }
 

@@ -7,10 +7,12 @@ pub mod expr;
 #[cfg(test)]
 mod feature_tests;
 pub mod limits;
+pub mod repeat;
 pub mod spec;
 mod types;
 
 pub use compile::{compile_str, compile_str_refined, load, load_refined, parse_set};
 pub use error::ModelError;
 pub use limits::Limits;
+pub use repeat::RepeatSummary;
 pub use types::*;

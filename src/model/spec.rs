@@ -297,6 +297,37 @@ pub struct Spec {
     pub sensors: Vec<Spanned<SensorSpec>>,
     pub solver: Option<Spanned<SolverSpec>>,
     pub initial: Option<Spanned<InitialSpec>>,
+    /// `[[repeat]]`: entries generated from an index (expanded by `repeat::expand`)
+    #[serde(default)]
+    pub repeat: Vec<Spanned<RepeatSpec>>,
+}
+
+/// `[[repeat]]`: the entries below it are written once and generated for every value of
+/// `index` from `from` (default 1) to `to` (inclusive); `{expr}` in their strings is
+/// replaced by the integer value of `expr`, and the index is a number in their
+/// expressions. Repeats nest (`[[repeat.repeat]]`).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RepeatSpec {
+    pub index: Spanned<String>,
+    pub from: Option<Spanned<Num>>,
+    pub to: Spanned<Num>,
+    #[serde(default)]
+    pub nodes: Vec<Spanned<NodeSpec>>,
+    #[serde(default)]
+    pub beams: Vec<Spanned<BeamSpec>>,
+    #[serde(default)]
+    pub supports: Vec<Spanned<SupportSpec>>,
+    #[serde(default)]
+    pub loads: Vec<Spanned<LoadSpec>>,
+    #[serde(default)]
+    pub bodies: Vec<Spanned<BodySpec>>,
+    #[serde(default)]
+    pub joints: Vec<Spanned<JointSpec>>,
+    #[serde(default)]
+    pub sensors: Vec<Spanned<SensorSpec>>,
+    #[serde(default)]
+    pub repeat: Vec<Spanned<RepeatSpec>>,
 }
 
 /// `[initial]`: the whole model starts in rigid rotation with `angular_velocity` about

@@ -318,6 +318,10 @@ pub struct Model {
     pub dofs: Vec<Dof>,
     pub spins: Vec<Spin>,
     pub hinges: Vec<Hinge>,
+    /// the hinge whose angle each dof is (`hinges[h].dof == d`), so that asking whether a
+    /// dof is frozen by a locked hinge costs O(1), not a scan of every hinge (which made
+    /// the assembly quadratic in the model's size: 270 hinges in the 18-bay Mini-Mast)
+    pub hinge_of_dof: Vec<Option<usize>>,
     pub loads: Vec<NodeLoad>,
     pub gravity: Vec3,
     pub sensors: Vec<Sensor>,
@@ -326,6 +330,8 @@ pub struct Model {
     pub n_eq: usize,
     /// `[initial]`: rigid rotation (omega, center) the free dofs start in
     pub initial_rotation: Option<(Vec3, Vec3)>,
+    /// what each `[[repeat]]` generated (empty for a file without repeats)
+    pub repeats: Vec<super::repeat::RepeatSummary>,
 }
 
 impl Model {

@@ -325,6 +325,11 @@ pub struct RunStats {
     pub time_error_by_sensor: Vec<f64>,
     /// warnings raised during the run beyond the energy and time-error checks
     pub notes: Vec<String>,
+    /// nonzeros of the Jacobian (iteration matrix) pattern, and of its LU factor L + U
+    /// for the last Jacobian assembled (see `SparseLuSymbolic::factor_nnz`); for cost
+    /// reports only
+    pub matrix_nnz: usize,
+    pub factor_nnz: Option<usize>,
 }
 
 impl RunStats {
@@ -1320,6 +1325,7 @@ pub fn run_with(
         record(&integ, &mut hist);
     }
     let mut stats = integ.run_stats();
+    (stats.matrix_nnz, stats.factor_nnz) = integ.sys.factor_size();
     stats.times.output_s += output_s;
     if prev.is_some() {
         let rel = |x: f64| {

@@ -223,6 +223,14 @@ impl NewtonSystem {
         Ok(info)
     }
 
+    /// Nonzeros of the Jacobian pattern and of its LU factor (L + U) for the values last
+    /// assembled (see [`SparseLuSymbolic::factor_nnz`]); `None` for the factor when those
+    /// values cannot be factored.
+    pub fn factor_size(&self) -> (usize, Option<usize>) {
+        let sym = self.lu.symbolic();
+        (sym.nnz(), sym.factor_nnz(&self.values).ok())
+    }
+
     /// The symbolic factorization, for sharing with other variants of the same pattern.
     pub fn symbolic(&self) -> &Arc<SparseLuSymbolic> {
         self.lu.symbolic()
