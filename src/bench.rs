@@ -843,6 +843,11 @@ fn time_error_ladder(
                     .ok_or_else(|| run_err(problem, format!("{scene} has no sensor '{n}'")))
             })
             .collect::<Result<_, _>>()?;
+        // the ladder's sensors of a history (the reference's selected once)
+        let select = |hist: &dynamics::History| -> Vec<Vec<Vec<f64>>> {
+            idx.iter().map(|&k| hist.values[k].clone()).collect()
+        };
+        let ref_sel = select(&h_ref);
         let mut failed = Vec::new();
         // a step longer than the output interval is cut to it: such rungs would repeat
         let out_dt = shipped.solver.output_dt;
@@ -869,10 +874,7 @@ fn time_error_ladder(
                     failed.push((dt, e));
                 }
                 Ok((_, h, st, wall)) => {
-                    let sel = |hist: &dynamics::History| -> Vec<Vec<Vec<f64>>> {
-                        idx.iter().map(|&k| hist.values[k].clone()).collect()
-                    };
-                    let errs = history_errors(&h.t, &sel(&h), &h_ref.t, &sel(&h_ref));
+                    let errs = history_errors(&h.t, &select(&h), &h_ref.t, &ref_sel);
                     let warned = st
                         .warnings()
                         .iter()

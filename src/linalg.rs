@@ -385,20 +385,23 @@ impl SparseLuSymbolic {
         self.variant
     }
 
-    /// Sign of det(A) and the number of negative diagonal entries of U, for the matrix
-    /// with this pattern and `values`: a separate left-looking LU (partial pivoting) on
-    /// this analysis' fill-reducing column order, because faer's supernodal factor does not
-    /// expose its diagonal. det(A) = sign(P_r)·sign(P_c)·∏ U_jj (L has a unit diagonal).
-    /// Path following calls it once per converged point (the bifurcation indicator), not
-    /// per Newton iteration. A zero pivot gives sign 0.
-    pub fn det_sign(&self, values: &[f64]) -> Result<(i8, usize), LinalgError> {
+    /// A left-looking LU with partial pivoting of the matrix with this pattern and
+    /// `values`, on this analysis' fill-reducing column order, with its row permutation;
+    /// `None` for an empty matrix. faer's supernodal factor exposes neither its diagonal
+    /// nor its structure, so the determinant's sign and the factor's size come from this
+    /// one (`what` names the caller in errors).
+    fn simplicial_lu(
+        &self,
+        values: &[f64],
+        what: &str,
+    ) -> Result<Option<(SimplicialLuF64, Vec<usize>)>, LinalgError> {
         use faer::sparse::linalg::lu::simplicial::{
             factorize_simplicial_numeric_lu, factorize_simplicial_numeric_lu_scratch, SimplicialLu,
         };
         let n = self.n;
         if values.len() != self.nnz() {
             return Err(LinalgError::Other(format!(
-                "det_sign: values has length {}, pattern nnz is {}",
+                "{what}: values has length {}, pattern nnz is {}",
                 values.len(),
                 self.nnz()
             )));
@@ -407,7 +410,7 @@ impl SparseLuSymbolic {
             return Err(LinalgError::NonFinite);
         }
         if n == 0 {
-            return Ok((1, 0));
+            return Ok(None);
         }
         let mut rp = vec![0usize; n];
         let mut rpi = vec![0usize; n];
@@ -422,12 +425,24 @@ impl SparseLuSymbolic {
             self.symbolic.col_perm(),
             MemStack::new(&mut mem),
         )
-        .map_err(|e| LinalgError::Other(format!("sparse LU (determinant sign): {e:?}")))?;
+        .map_err(|e| LinalgError::Other(format!("sparse LU ({what}): {e:?}")))?;
+        Ok(Some((lu, rp)))
+    }
+
+    /// Sign of det(A) and the number of negative diagonal entries of U, for the matrix
+    /// with this pattern and `values`, from [`simplicial_lu`](Self::simplicial_lu):
+    /// det(A) = sign(P_r)·sign(P_c)·∏ U_jj (L has a unit diagonal). Path following calls it
+    /// once per converged point (the bifurcation indicator), not per Newton iteration. A
+    /// zero pivot gives sign 0.
+    pub fn det_sign(&self, values: &[f64]) -> Result<(i8, usize), LinalgError> {
+        let Some((lu, rp)) = self.simplicial_lu(values, "determinant sign")? else {
+            return Ok((1, 0));
+        };
         let u = lu.u_factor_unsorted();
         let (cp, ri, uv) = (u.col_ptr(), u.row_idx(), u.val());
         let mut sign = perm_sign(&rp) * perm_sign(self.symbolic.col_perm().arrays().0);
         let mut negative = 0;
-        for j in 0..n {
+        for j in 0..self.n {
             let d = (cp[j]..cp[j + 1])
                 .find(|&k| ri[k] == j)
                 .map_or(0.0, |k| uv[k]);
@@ -442,45 +457,16 @@ impl SparseLuSymbolic {
         Ok((sign, negative))
     }
 
-    /// Stored nonzeros of L and U (L's unit diagonal counted once, in L) for the matrix
-    /// with this pattern and `values`: the left-looking LU with partial pivoting of
-    /// [`det_sign`](Self::det_sign) on this analysis' fill-reducing column order, because
-    /// faer's supernodal factor does not expose its structure (it also stores the explicit
-    /// zeros of its dense supernode blocks, so it holds at least this many). For reports
-    /// (`run --json`, the bench tables), not for the solve.
+    /// Stored nonzeros of L and U (L's unit diagonal counted once, in L) of
+    /// [`simplicial_lu`](Self::simplicial_lu) (faer's supernodal factor also stores the
+    /// explicit zeros of its dense supernode blocks, so it holds at least this many). For
+    /// reports (`run --json`, the bench tables), not for the solve.
     pub fn factor_nnz(&self, values: &[f64]) -> Result<usize, LinalgError> {
-        use faer::sparse::linalg::lu::simplicial::{
-            factorize_simplicial_numeric_lu, factorize_simplicial_numeric_lu_scratch, SimplicialLu,
-        };
-        let n = self.n;
-        if values.len() != self.nnz() {
-            return Err(LinalgError::Other(format!(
-                "factor_nnz: values has length {}, pattern nnz is {}",
-                values.len(),
-                self.nnz()
-            )));
-        }
-        if !values.iter().all(|v| v.is_finite()) {
-            return Err(LinalgError::NonFinite);
-        }
-        if n == 0 {
-            return Ok(0);
-        }
-        let mut rp = vec![0usize; n];
-        let mut rpi = vec![0usize; n];
-        let mut lu = SimplicialLu::<usize, f64>::new();
-        let a = SparseColMatRef::new(self.structure.as_ref(), values);
-        let mut mem = MemBuffer::new(factorize_simplicial_numeric_lu_scratch::<usize, f64>(n, n));
-        factorize_simplicial_numeric_lu(
-            &mut rp,
-            &mut rpi,
-            &mut lu,
-            a,
-            self.symbolic.col_perm(),
-            MemStack::new(&mut mem),
-        )
-        .map_err(|e| LinalgError::Other(format!("sparse LU (factor size): {e:?}")))?;
-        Ok(lu.l_factor_unsorted().row_idx().len() + lu.u_factor_unsorted().row_idx().len())
+        Ok(self
+            .simplicial_lu(values, "factor size")?
+            .map_or(0, |(lu, _)| {
+                lu.l_factor_unsorted().row_idx().len() + lu.u_factor_unsorted().row_idx().len()
+            }))
     }
 
     /// Original column eliminated at step `step` of the factorisation.
@@ -489,6 +475,9 @@ impl SparseLuSymbolic {
         fwd.get(step).copied().unwrap_or(step)
     }
 }
+
+/// faer's simplicial LU factor, as [`SparseLuSymbolic`]'s reporting routines use it.
+type SimplicialLuF64 = faer::sparse::linalg::lu::simplicial::SimplicialLu<usize, f64>;
 
 /// Parity of a permutation given as its forward array: +1 even, −1 odd.
 fn perm_sign(fwd: &[usize]) -> i8 {

@@ -5,6 +5,9 @@
 //! that every dataset and attribute is equal, floats bit for bit, except the command
 //! line, the thread count and the wall times.
 
+mod common;
+
+use common::assert_same_campaign;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -54,41 +57,6 @@ fn indices(v: &serde_json::Value) -> Vec<usize> {
         .iter()
         .map(|x| x.as_u64().unwrap() as usize)
         .collect()
-}
-
-fn h5py_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import h5py"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !ok && std::env::var_os("CI").is_some() {
-        panic!("h5py is not installed, but CI is set: .ci/run must install h5py");
-    }
-    ok
-}
-
-/// `a` and `b` hold the same campaign, bit for bit (tests/compare_campaigns.py); false
-/// (with a SKIPPED line) only where h5py is missing outside CI.
-fn assert_same_campaign(a: &Path, b: &Path) {
-    if !h5py_available() {
-        println!("SKIPPED (comparison): h5py not installed");
-        return;
-    }
-    let out = Command::new("python3")
-        .arg(root().join("tests/compare_campaigns.py"))
-        .arg(a)
-        .arg(b)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.trim_end() == "OK",
-        "{} and {} differ:\n{text}{}",
-        a.display(),
-        b.display(),
-        stderr(&out)
-    );
 }
 
 const PENDULUM: &[&str] = &[

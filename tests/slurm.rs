@@ -13,6 +13,9 @@
 //!    merge job reports exactly that task's unfinished global indices and exits 4; the
 //!    resume job completes the merged file to the single-process values.
 
+mod common;
+
+use common::assert_same_campaign;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -281,23 +284,6 @@ fn completed_rows(path: &Path) -> Vec<usize> {
             .collect(),
         _ => Vec::new(),
     }
-}
-
-fn assert_same_campaign(a: &Path, b: &Path) {
-    let out = Command::new("python3")
-        .arg(root().join("tests/compare_campaigns.py"))
-        .arg(a)
-        .arg(b)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.trim_end() == "OK",
-        "{} and {} differ:\n{text}{}",
-        a.display(),
-        b.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 const SHARDS: usize = 4;

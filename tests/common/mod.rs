@@ -91,3 +91,38 @@ pub fn latdyn(args: &[&str]) -> std::process::Output {
         .output()
         .expect("run latdyn")
 }
+
+pub fn h5py_available() -> bool {
+    let ok = std::process::Command::new("python3")
+        .args(["-c", "import h5py"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !ok && std::env::var_os("CI").is_some() {
+        panic!("h5py is not installed, but CI is set: .ci/run must install h5py");
+    }
+    ok
+}
+
+/// `a` and `b` hold the same campaign, bit for bit (tests/compare_campaigns.py); false
+/// (with a SKIPPED line) only where h5py is missing outside CI.
+pub fn assert_same_campaign(a: &Path, b: &Path) {
+    if !h5py_available() {
+        println!("SKIPPED (comparison): h5py not installed");
+        return;
+    }
+    let out = std::process::Command::new("python3")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/compare_campaigns.py"))
+        .arg(a)
+        .arg(b)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.trim_end() == "OK",
+        "{} and {} differ:\n{text}{}",
+        a.display(),
+        b.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
