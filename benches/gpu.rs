@@ -101,11 +101,16 @@ fn main() {
             seen: Mutex::new(Vec::new()),
         });
         let t0 = Instant::now();
-        let (split, stats) = latdyn::assembly::with_evaluator(rec.clone(), || {
-            let mut it = latdyn::solver::dynamics::Integrator::new(&m).expect("integrator");
+        let (split, stats) = {
+            let ctx = latdyn::solver::dynamics::RunContext {
+                eval: Some(rec.clone()),
+                ..Default::default()
+            };
+            let mut it =
+                latdyn::solver::dynamics::Integrator::with_context(&m, &ctx).expect("integrator");
             let _ = it.advance_to(m.solver.t_end);
             (it.asm.stage_times(), it.stats.clone())
-        });
+        };
         let wall = t0.elapsed().as_secs_f64();
         let rest = (wall - split.element_s - split.assembly_s).max(0.0);
         let per = |x: f64| 1e6 * x / split.calls.max(1) as f64;

@@ -12,37 +12,14 @@
 //! to the M/(βh²) term; the velocity derivative of the chains' convective accelerations;
 //! the load stiffness of distributed gravity on beams.
 
-use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use crate::element::{self, CpuEval, ElemData, ElemIn, ElemOut, ElementEval, Mat12, Vec12, NDOF};
+use crate::element::{self, CpuEval, ElemIn, ElemOut, ElementEval, Mat12, Vec12, NDOF};
 use crate::joint::{self, Chain, State};
 use crate::math::*;
 use crate::model::Model;
-
-thread_local! {
-    /// Element stage that [`Assembler::new`] gives new assemblers on this thread (None:
-    /// the CPU functions). Set by [`with_evaluator`]: the GPU ensemble runs each variant's
-    /// unchanged solver on a thread whose assemblers talk to the shared GPU batcher.
-    static THREAD_EVAL: RefCell<Option<Arc<dyn ElementEval>>> = const { RefCell::new(None) };
-}
-
-/// Run `f` with `eval` as the element stage of every [`Assembler`] created inside it on
-/// this thread.
-pub fn with_evaluator<R>(eval: Arc<dyn ElementEval>, f: impl FnOnce() -> R) -> R {
-    struct Reset(Option<Arc<dyn ElementEval>>);
-    impl Drop for Reset {
-        fn drop(&mut self) {
-            let prev = self.0.take();
-            THREAD_EVAL.with(|t| *t.borrow_mut() = prev);
-        }
-    }
-    let prev = THREAD_EVAL.with(|t| t.borrow_mut().replace(eval));
-    let _reset = Reset(prev);
-    f()
-}
 
 /// Per-element gathered data the scatter needs besides the element outputs.
 #[derive(Clone, Copy)]
@@ -131,15 +108,12 @@ impl Coeffs {
     }
 }
 
-/// Immutable per-model data the assembly needs, built once.
+/// The assembly stage's per-run data: the element stage it calls, scratch sized once
+/// per model and cumulative timers. The model's constants (element data, equation maps)
+/// live in [`Model`]; nothing here outlives the run or is shared between variants.
 pub struct Assembler {
-    pub elems: Vec<ElemData>,
-    /// dof → equation (None for driven dofs)
-    pub eq: Vec<Option<usize>>,
-    pub n_eq: usize,
-    /// equations that are angles (spins, hinges, body rotations): Newton limits their step
-    pub rot_eq: Vec<bool>,
-    /// the element stage (CPU reference unless set otherwise, see [`with_evaluator`])
+    /// the element stage: the CPU functions ([`Assembler::new`]) or another backend
+    /// ([`Assembler::with_eval`], e.g. a GPU batcher's client)
     pub eval: Arc<dyn ElementEval>,
     /// uncontended: `evaluate` takes `&self`, and one assembler serves one solver thread
     scratch: Mutex<Scratch>,
@@ -166,44 +140,19 @@ pub struct AssemblyInfo {
 }
 
 impl Assembler {
+    /// An assembler whose element stage is the CPU functions.
     pub fn new(model: &Model) -> Assembler {
-        let elems = model
-            .elements
-            .iter()
-            .map(|e| ElemData::new(e.props, e.frame0, model.x0[e.n1], model.x0[e.n2]))
-            .collect();
-        let mut rot_eq = vec![false; model.n_eq];
-        let mut mark = |d: usize| {
-            if let Some(e) = model.dofs[d].eq {
-                rot_eq[e] = true;
-            }
-        };
-        for sp in &model.spins {
-            sp.dofs.iter().for_each(|&d| mark(d));
-        }
-        for h in &model.hinges {
-            mark(h.dof);
-        }
-        for b in &model.bodies {
-            for l in &b.chain {
-                if let crate::model::ChainLink::RotateFixedAxis { dof, .. } = l {
-                    mark(*dof);
-                }
-            }
-        }
+        Assembler::with_eval(model, Arc::new(CpuEval))
+    }
+
+    /// An assembler whose element stage is `eval`.
+    pub fn with_eval(model: &Model, eval: Arc<dyn ElementEval>) -> Assembler {
         let ne = model.elements.len();
         let empty = Gathered {
             ch: [Chain::empty(); 2],
             y: [[0.0; 3]; 2],
         };
-        let eval = THREAD_EVAL
-            .with(|t| t.borrow().clone())
-            .unwrap_or_else(|| Arc::new(CpuEval));
         Assembler {
-            elems,
-            eq: model.dofs.iter().map(|d| d.eq).collect(),
-            n_eq: model.n_eq,
-            rot_eq,
             eval,
             scratch: Mutex::new(Scratch {
                 gathered: vec![empty; ne],
@@ -239,33 +188,14 @@ impl Assembler {
         }
     }
 
-    /// Every element within its small-deformation range (see
-    /// [`element::deformation_in_range`]).
-    pub fn deformation_in_range(&self, model: &Model, s: &State) -> bool {
-        self.elems
-            .iter()
-            .enumerate()
-            .all(|(ie, ed)| element::deformation_in_range(ed, &joint::elem_state(model, s, ie)))
-    }
-
-    /// Scale a Newton increment so no angle changes by more than `max_angle` radians:
-    /// full steps across large rotations land on spurious equilibria.
-    pub fn limit_rotation_step(&self, dx: &mut [f64], max_angle: f64) {
-        let big = dx
-            .iter()
-            .zip(&self.rot_eq)
-            .filter(|(_, r)| **r)
-            .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
-        if big > max_angle {
-            let f = max_angle / big;
-            dx.iter_mut().for_each(|x| *x *= f);
-        }
-    }
-
     /// Evaluate the residual (generalized forces, by dof, in `gen`: inertia + internal −
     /// external; zero is equilibrium) and optionally the Jacobian into `sink`.
     /// `gen` has one entry per dof; for a driven dof it is the generalized force the
     /// driver must supply to impose its motion.
+    ///
+    /// A dispatcher over the terms, in a fixed order (the sums are bit-reproducible):
+    /// elements, rigid bodies, nodal loads, hinge springs, then identity rows for frozen
+    /// dofs.
     pub fn evaluate(
         &self,
         model: &Model,
@@ -276,15 +206,35 @@ impl Assembler {
     ) -> AssemblyInfo {
         gen.iter_mut().for_each(|x| *x = 0.0);
         let mut info = AssemblyInfo::default();
+        let t_start = Instant::now();
+        self.elements(model, s, c, gen, sink.as_deref_mut(), &mut info);
+        bodies(model, s, c, gen, sink.as_deref_mut(), &mut info);
+        loads(model, s, c, gen, sink.as_deref_mut(), &mut info);
+        hinges(model, s, c, gen, sink.as_deref_mut(), &mut info);
+        if let Some(sk) = sink {
+            frozen_rows(model, s, sk);
+        }
+        self.total_ns
+            .fetch_add(t_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        self.calls.fetch_add(1, Ordering::Relaxed);
+        info
+    }
+
+    /// The beam elements: gather each element's state, chains, velocities and
+    /// accelerations; run the element stage on all of them at once; scatter forces and
+    /// matrices through the chains.
+    fn elements(
+        &self,
+        model: &Model,
+        s: &State,
+        c: Coeffs,
+        gen: &mut [f64],
+        mut sink: Option<&mut (dyn Sink + '_)>,
+        info: &mut AssemblyInfo,
+    ) {
         let g = model.gravity;
         let gfac = if c.inertia { 1.0 } else { c.load_factor };
         let has_gravity = g != [0.0; 3];
-        let track = |info: &mut AssemblyInfo, v: &[f64]| {
-            for x in v {
-                info.force_scale = info.force_scale.max(x.abs());
-            }
-        };
-        let t_start = Instant::now();
         let need_inertia = c.inertia || has_gravity;
         let mut guard = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
         let scratch = &mut *guard;
@@ -332,11 +282,15 @@ impl Assembler {
         // proportional damping puts K into the residual)
         let tangent = sink.is_some() || model.solver.rayleigh_beta != 0.0;
         let evaluated = if tangent {
-            self.eval
-                .evaluate(&self.elems, &scratch.inputs, need_inertia, &mut scratch.out)
+            self.eval.evaluate(
+                &model.elem_data,
+                &scratch.inputs,
+                need_inertia,
+                &mut scratch.out,
+            )
         } else {
             self.eval.evaluate_residual(
-                &self.elems,
+                &model.elem_data,
                 &scratch.inputs,
                 need_inertia,
                 &mut scratch.out,
@@ -354,7 +308,7 @@ impl Assembler {
             .fetch_add(t_el.elapsed().as_nanos() as u64, Ordering::Relaxed);
         // (c) scatter
         for (ie, el) in model.elements.iter().enumerate() {
-            let ed = &self.elems[ie];
+            let ed = &model.elem_data[ie];
             let n1 = el.n1;
             let es = &scratch.inputs[ie].state;
             let Gathered { ch, y } = scratch.gathered[ie];
@@ -362,7 +316,7 @@ impl Assembler {
             let o = &scratch.out[ie];
             let mut f = o.f;
             let k = &o.k;
-            track(&mut info, &f);
+            track(info, &f);
             info.strain_energy += o.energy;
             if has_gravity {
                 info.gravity_energy += element::gravity_energy(ed, es, model.x0[n1], g);
@@ -370,7 +324,7 @@ impl Assembler {
             let m = &o.m;
             let mut cmat = o.c;
             if need_inertia {
-                track(&mut info, &o.finert);
+                track(info, &o.finert);
                 for i in 0..NDOF {
                     f[i] += o.finert[i];
                 }
@@ -406,216 +360,273 @@ impl Assembler {
                         comb[i][j] = c.ck * k[i][j] + c.cc * cmat[i][j] + c.cm * m[i][j];
                     }
                 }
-                self.scatter_pair(s, model, &ch, &y, &comb, sk);
+                scatter_pair(s, model, &ch, &y, &comb, sk);
                 for nd in 0..2 {
                     let fl = [f[6 * nd], f[6 * nd + 1], f[6 * nd + 2]];
                     let ml = [f[6 * nd + 3], f[6 * nd + 4], f[6 * nd + 5]];
-                    self.geometric(s, model, &ch[nd], y[nd], fl, ml, c.ck, sk);
-                }
-            }
-        }
-
-        for (ib, body) in model.bodies.iter().enumerate() {
-            if body.chain.is_empty() {
-                continue;
-            }
-            let ch = joint::body_chain(model, s, ib);
-            let r = s.body_r[ib];
-            let y = add(s.body_x[ib], mat_vec(&r, body.com));
-            let is = mat_mul(&mat_mul(&r, &body.inertia), &transpose(&r));
-            info.gravity_energy -= body.mass * dot(g, y);
-            let mut f = scale(g, -gfac * body.mass);
-            let mut mom = [0.0; 3];
-            let mut gyro = [[0.0; 3]; 3];
-            if c.inertia {
-                let (vl, w) = ch.velocity(y, &s.v);
-                let (al, aa) = ch.velocity(y, &s.a);
-                let (cl, ca) = ch.convective_acc(y, &s.v);
-                let acc = add(al, cl);
-                let alpha = add(aa, ca);
-                let iw = mat_vec(&is, w);
-                f = add(f, scale(acc, body.mass));
-                mom = add(mat_vec(&is, alpha), cross(w, iw));
-                info.kinetic_energy += 0.5 * body.mass * dot(vl, vl) + 0.5 * dot(w, iw);
-                let sw = skew(w);
-                let siw = skew(iw);
-                let swi = mat_mul(&sw, &is);
-                for i in 0..3 {
-                    for j in 0..3 {
-                        gyro[i][j] = swi[i][j] - siw[i][j];
-                    }
-                }
-            }
-            track(&mut info, &f);
-            track(&mut info, &mom);
-            ch.project(y, f, mom, gen);
-            if let Some(sk) = sink.as_deref_mut() {
-                let mut m6 = [[0.0; 6]; 6];
-                for i in 0..3 {
-                    m6[i][i] = c.cm * body.mass;
-                    for j in 0..3 {
-                        m6[3 + i][3 + j] = c.cm * is[i][j] + c.cc * gyro[i][j];
-                    }
-                }
-                self.scatter_block(s, model, &ch, y, &ch, y, &m6, sk);
-                self.geometric(s, model, &ch, y, f, mom, c.ck, sk);
-            }
-        }
-
-        for l in &model.loads {
-            let ch = joint::node_chain(model, s, l.node);
-            let y = joint::node_position(model, s, l.node);
-            // time scales apply in dynamics; statics applies loads at full value
-            let lf = if c.inertia {
-                c.load_factor * l.scale.as_ref().map(|f| f.eval(s.t)[0]).unwrap_or(1.0)
-            } else {
-                c.load_factor
-            };
-            let f = scale(l.force, -lf);
-            let m = scale(l.moment, -lf);
-            if c.inertia {
-                let (vl, w) = ch.velocity(y, &s.v);
-                info.load_power -= dot(f, vl) + dot(m, w);
-            }
-            track(&mut info, &f);
-            track(&mut info, &m);
-            ch.project(y, f, m, gen);
-            if let Some(sk) = sink.as_deref_mut() {
-                self.geometric(s, model, &ch, y, f, m, c.ck, sk);
-            }
-        }
-
-        for (ih, h) in model.hinges.iter().enumerate() {
-            let th = s.q[h.dof];
-            let fh = h.stiffness * (th - h.angle_ref) + h.damping * s.v[h.dof];
-            gen[h.dof] += fh;
-            if c.inertia {
-                info.damping_power += h.damping * s.v[h.dof] * s.v[h.dof];
-            }
-            info.strain_energy += 0.5 * h.stiffness * (th - h.angle_ref).powi(2);
-            if let (Some(sk), Some(e)) = (sink.as_deref_mut(), self.eq[h.dof]) {
-                if !s.locked[ih] {
-                    sk.add(e, e, c.ck * h.stiffness + c.cc * h.damping);
-                }
-            }
-        }
-
-        // frozen (locked) dofs: identity rows keep the matrix regular; their residual is
-        // zeroed by the caller's gather
-        if let Some(sk) = sink {
-            for (d, e) in self.eq.iter().enumerate() {
-                if let Some(e) = e {
-                    if !s.is_active(model, d) {
-                        sk.add(*e, *e, 1.0);
-                    }
-                }
-            }
-        }
-        self.total_ns
-            .fetch_add(t_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        self.calls.fetch_add(1, Ordering::Relaxed);
-        info
-    }
-
-    /// Residual by equation from the by-dof generalized forces (frozen dofs give 0).
-    pub fn gather(&self, model: &Model, s: &State, gen: &[f64], r: &mut [f64]) {
-        r.iter_mut().for_each(|x| *x = 0.0);
-        for (d, e) in self.eq.iter().enumerate() {
-            if let Some(e) = e {
-                if s.is_active(model, d) {
-                    r[*e] = gen[d];
+                    geometric(s, model, &ch[nd], y[nd], fl, ml, c.ck, sk);
                 }
             }
         }
     }
+}
 
-    fn active_eq(&self, s: &State, model: &Model, dof: usize) -> Option<usize> {
-        if s.is_active(model, dof) {
-            self.eq[dof]
+/// Largest force contribution so far: the scale of the convergence test.
+fn track(info: &mut AssemblyInfo, v: &[f64]) {
+    for x in v {
+        info.force_scale = info.force_scale.max(x.abs());
+    }
+}
+
+/// Rigid bodies on chains: gravity, d'Alembert force and moment (with the gyroscopic
+/// term), their mass and gyroscopic matrices.
+fn bodies(
+    model: &Model,
+    s: &State,
+    c: Coeffs,
+    gen: &mut [f64],
+    mut sink: Option<&mut (dyn Sink + '_)>,
+    info: &mut AssemblyInfo,
+) {
+    let g = model.gravity;
+    let gfac = if c.inertia { 1.0 } else { c.load_factor };
+    for (ib, body) in model.bodies.iter().enumerate() {
+        if body.chain.is_empty() {
+            continue;
+        }
+        let ch = joint::body_chain(model, s, ib);
+        let r = s.body_r[ib];
+        let y = add(s.body_x[ib], mat_vec(&r, body.com));
+        let is = mat_mul(&mat_mul(&r, &body.inertia), &transpose(&r));
+        info.gravity_energy -= body.mass * dot(g, y);
+        let mut f = scale(g, -gfac * body.mass);
+        let mut mom = [0.0; 3];
+        let mut gyro = [[0.0; 3]; 3];
+        if c.inertia {
+            let (vl, w) = ch.velocity(y, &s.v);
+            let (al, aa) = ch.velocity(y, &s.a);
+            let (cl, ca) = ch.convective_acc(y, &s.v);
+            let acc = add(al, cl);
+            let alpha = add(aa, ca);
+            let iw = mat_vec(&is, w);
+            f = add(f, scale(acc, body.mass));
+            mom = add(mat_vec(&is, alpha), cross(w, iw));
+            info.kinetic_energy += 0.5 * body.mass * dot(vl, vl) + 0.5 * dot(w, iw);
+            let sw = skew(w);
+            let siw = skew(iw);
+            let swi = mat_mul(&sw, &is);
+            for i in 0..3 {
+                for j in 0..3 {
+                    gyro[i][j] = swi[i][j] - siw[i][j];
+                }
+            }
+        }
+        track(info, &f);
+        track(info, &mom);
+        ch.project(y, f, mom, gen);
+        if let Some(sk) = sink.as_deref_mut() {
+            let mut m6 = [[0.0; 6]; 6];
+            for i in 0..3 {
+                m6[i][i] = c.cm * body.mass;
+                for j in 0..3 {
+                    m6[3 + i][3 + j] = c.cm * is[i][j] + c.cc * gyro[i][j];
+                }
+            }
+            scatter_block(s, model, &ch, y, &ch, y, &m6, sk);
+            geometric(s, model, &ch, y, f, mom, c.ck, sk);
+        }
+    }
+}
+
+/// Nodal forces and moments, scaled by their time functions in dynamics and by the load
+/// factor in statics; their load stiffness through the chains.
+fn loads(
+    model: &Model,
+    s: &State,
+    c: Coeffs,
+    gen: &mut [f64],
+    mut sink: Option<&mut (dyn Sink + '_)>,
+    info: &mut AssemblyInfo,
+) {
+    for l in &model.loads {
+        let ch = joint::node_chain(model, s, l.node);
+        let y = joint::node_position(model, s, l.node);
+        // time scales apply in dynamics; statics applies loads at full value
+        let lf = if c.inertia {
+            c.load_factor * l.scale.as_ref().map(|f| f.eval(s.t)[0]).unwrap_or(1.0)
         } else {
-            None
+            c.load_factor
+        };
+        let f = scale(l.force, -lf);
+        let m = scale(l.moment, -lf);
+        if c.inertia {
+            let (vl, w) = ch.velocity(y, &s.v);
+            info.load_power -= dot(f, vl) + dot(m, w);
+        }
+        track(info, &f);
+        track(info, &m);
+        ch.project(y, f, m, gen);
+        if let Some(sk) = sink.as_deref_mut() {
+            geometric(s, model, &ch, y, f, m, c.ck, sk);
         }
     }
+}
 
-    /// Bᵀ A B for the two nodes of an element (A is 12×12 over both nodes).
-    fn scatter_pair(
-        &self,
-        s: &State,
-        model: &Model,
-        ch: &[Chain; 2],
-        y: &[Vec3; 2],
-        a: &Mat12,
-        sk: &mut dyn Sink,
-    ) {
-        for na in 0..2 {
-            for nb in 0..2 {
-                let mut blk = [[0.0; 6]; 6];
-                for i in 0..6 {
-                    for j in 0..6 {
-                        blk[i][j] = a[6 * na + i][6 * nb + j];
-                    }
-                }
-                self.scatter_block(s, model, &ch[na], y[na], &ch[nb], y[nb], &blk, sk);
+/// Hinge springs and dampers on their angle dofs (a locked hinge's row is frozen).
+fn hinges(
+    model: &Model,
+    s: &State,
+    c: Coeffs,
+    gen: &mut [f64],
+    mut sink: Option<&mut (dyn Sink + '_)>,
+    info: &mut AssemblyInfo,
+) {
+    for (ih, h) in model.hinges.iter().enumerate() {
+        let th = s.q[h.dof];
+        let fh = h.stiffness * (th - h.angle_ref) + h.damping * s.v[h.dof];
+        gen[h.dof] += fh;
+        if c.inertia {
+            info.damping_power += h.damping * s.v[h.dof] * s.v[h.dof];
+        }
+        info.strain_energy += 0.5 * h.stiffness * (th - h.angle_ref).powi(2);
+        if let (Some(sk), Some(e)) = (sink.as_deref_mut(), model.dof_eq[h.dof]) {
+            if !s.locked[ih] {
+                sk.add(e, e, c.ck * h.stiffness + c.cc * h.damping);
             }
         }
     }
+}
 
-    /// B_aᵀ A B_b for a 6×6 block between points ya (chain a) and yb (chain b).
-    #[allow(clippy::too_many_arguments)]
-    fn scatter_block(
-        &self,
-        s: &State,
-        model: &Model,
-        cha: &Chain,
-        ya: Vec3,
-        chb: &Chain,
-        yb: Vec3,
-        a: &[[f64; 6]; 6],
-        sk: &mut dyn Sink,
-    ) {
-        // A·B_b columns first, then B_aᵀ rows
-        let mut ab = [[0.0; 6]; joint::MAXCHAIN];
-        for l in 0..chb.n {
-            let (tl, ta) = chb.twist(l, yb);
-            let col6 = [tl[0], tl[1], tl[2], ta[0], ta[1], ta[2]];
+/// Frozen (locked) dofs: identity rows keep the matrix regular; their residual is zeroed
+/// by [`gather`].
+fn frozen_rows(model: &Model, s: &State, sk: &mut dyn Sink) {
+    for (d, e) in model.dof_eq.iter().enumerate() {
+        if let Some(e) = e {
+            if !s.is_active(model, d) {
+                sk.add(*e, *e, 1.0);
+            }
+        }
+    }
+}
+
+/// Every element within its small-deformation range (see
+/// [`element::deformation_in_range`]).
+pub fn deformation_in_range(model: &Model, s: &State) -> bool {
+    model
+        .elem_data
+        .iter()
+        .enumerate()
+        .all(|(ie, ed)| element::deformation_in_range(ed, &joint::elem_state(model, s, ie)))
+}
+
+/// Scale a Newton increment so no angle changes by more than `max_angle` radians: full
+/// steps across large rotations land on spurious equilibria.
+pub fn limit_rotation_step(model: &Model, dx: &mut [f64], max_angle: f64) {
+    let big = dx
+        .iter()
+        .zip(&model.rot_eq)
+        .filter(|(_, r)| **r)
+        .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
+    if big > max_angle {
+        let f = max_angle / big;
+        dx.iter_mut().for_each(|x| *x *= f);
+    }
+}
+
+/// Residual by equation from the by-dof generalized forces (frozen dofs give 0).
+pub fn gather(model: &Model, s: &State, gen: &[f64], r: &mut [f64]) {
+    r.iter_mut().for_each(|x| *x = 0.0);
+    for (d, e) in model.dof_eq.iter().enumerate() {
+        if let Some(e) = e {
+            if s.is_active(model, d) {
+                r[*e] = gen[d];
+            }
+        }
+    }
+}
+
+fn active_eq(s: &State, model: &Model, dof: usize) -> Option<usize> {
+    if s.is_active(model, dof) {
+        model.dof_eq[dof]
+    } else {
+        None
+    }
+}
+
+/// Bᵀ A B for the two nodes of an element (A is 12×12 over both nodes).
+fn scatter_pair(
+    s: &State,
+    model: &Model,
+    ch: &[Chain; 2],
+    y: &[Vec3; 2],
+    a: &Mat12,
+    sk: &mut dyn Sink,
+) {
+    for na in 0..2 {
+        for nb in 0..2 {
+            let mut blk = [[0.0; 6]; 6];
             for i in 0..6 {
-                ab[l][i] = (0..6).map(|j| a[i][j] * col6[j]).sum();
+                for j in 0..6 {
+                    blk[i][j] = a[6 * na + i][6 * nb + j];
+                }
             }
+            scatter_block(s, model, &ch[na], y[na], &ch[nb], y[nb], &blk, sk);
         }
-        for k in 0..cha.n {
-            let Some(ek) = self.active_eq(s, model, cha.cols[k].dof) else {
+    }
+}
+
+/// B_aᵀ A B_b for a 6×6 block between points ya (chain a) and yb (chain b).
+#[allow(clippy::too_many_arguments)]
+fn scatter_block(
+    s: &State,
+    model: &Model,
+    cha: &Chain,
+    ya: Vec3,
+    chb: &Chain,
+    yb: Vec3,
+    a: &[[f64; 6]; 6],
+    sk: &mut dyn Sink,
+) {
+    // A·B_b columns first, then B_aᵀ rows
+    let mut ab = [[0.0; 6]; joint::MAXCHAIN];
+    for l in 0..chb.n {
+        let (tl, ta) = chb.twist(l, yb);
+        let col6 = [tl[0], tl[1], tl[2], ta[0], ta[1], ta[2]];
+        for i in 0..6 {
+            ab[l][i] = (0..6).map(|j| a[i][j] * col6[j]).sum();
+        }
+    }
+    for k in 0..cha.n {
+        let Some(ek) = active_eq(s, model, cha.cols[k].dof) else {
+            continue;
+        };
+        let (tl, ta) = cha.twist(k, ya);
+        let row6 = [tl[0], tl[1], tl[2], ta[0], ta[1], ta[2]];
+        for l in 0..chb.n {
+            let Some(el) = active_eq(s, model, chb.cols[l].dof) else {
                 continue;
             };
-            let (tl, ta) = cha.twist(k, ya);
-            let row6 = [tl[0], tl[1], tl[2], ta[0], ta[1], ta[2]];
-            for l in 0..chb.n {
-                let Some(el) = self.active_eq(s, model, chb.cols[l].dof) else {
-                    continue;
-                };
-                let v: f64 = (0..6).map(|i| row6[i] * ab[l][i]).sum();
-                sk.add(ek, el, v);
-            }
+            let v: f64 = (0..6).map(|i| row6[i] * ab[l][i]).sum();
+            sk.add(ek, el, v);
         }
     }
+}
 
-    #[allow(clippy::too_many_arguments)]
-    fn geometric(
-        &self,
-        s: &State,
-        model: &Model,
-        ch: &Chain,
-        y: Vec3,
-        f: Vec3,
-        m: Vec3,
-        ck: f64,
-        sk: &mut dyn Sink,
-    ) {
-        ch.geometric(y, f, m, |dk, dl, v| {
-            if let (Some(ek), Some(el)) =
-                (self.active_eq(s, model, dk), self.active_eq(s, model, dl))
-            {
-                sk.add(ek, el, ck * v);
-            }
-        });
-    }
+/// The geometric stiffness of a force and moment carried through a chain, times `ck`.
+#[allow(clippy::too_many_arguments)]
+fn geometric(
+    s: &State,
+    model: &Model,
+    ch: &Chain,
+    y: Vec3,
+    f: Vec3,
+    m: Vec3,
+    ck: f64,
+    sk: &mut dyn Sink,
+) {
+    ch.geometric(y, f, m, |dk, dl, v| {
+        if let (Some(ek), Some(el)) = (active_eq(s, model, dk), active_eq(s, model, dl)) {
+            sk.add(ek, el, ck * v);
+        }
+    });
 }

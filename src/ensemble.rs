@@ -737,11 +737,12 @@ fn run_core(
                     {
                         panic!("injected panic in a variant (LATDYN_FAULT_PANIC=variant)");
                     }
-                    let sim = || dynamics::run_with(m, Some(stop), p.symbolic.as_ref(), |_, _| {});
-                    match &stage.make {
-                        Some(make) => crate::assembly::with_evaluator(make(), sim),
-                        None => sim(),
-                    }
+                    let ctx = dynamics::RunContext {
+                        stop: Some(stop),
+                        symbolic: p.symbolic.as_ref(),
+                        eval: stage.make.as_ref().map(|make| make()),
+                    };
+                    dynamics::run_in(m, &ctx, |_, _| {})
                 }));
                 let wall = t0.elapsed().as_secs_f64();
                 let mut panicked = None;

@@ -239,7 +239,6 @@ fn seen_elastic(model: &Model, rm: &RotatingModes, sensor: (usize, usize)) -> Op
     let elastic: Vec<usize> = (0..rm.deformation.len())
         .filter(|&k| rm.deformation[k] >= RIGID_DEFORMATION && rm.frequencies_hz[k] > 0.0)
         .collect();
-    let asm = crate::assembly::Assembler::new(model);
     let kind = &model.sensors.get(sensor.0)?.kind;
     let drv = vec![0.0; model.dofs.len()];
     let value = |dx: &[f64]| -> f64 {
@@ -247,7 +246,7 @@ fn seen_elastic(model: &Model, rm: &RotatingModes, sensor: (usize, usize)) -> Op
         crate::joint::apply_increment(model, &mut s, dx);
         crate::joint::update_kinematics(model, &mut s);
         let e = crate::sensors::Energies::default();
-        crate::sensors::sample(model, &asm, &s, kind, &e, &drv)
+        crate::sensors::sample(model, &s, kind, &e, &drv)
             .get(sensor.1)
             .copied()
             .unwrap_or(0.0)

@@ -1136,11 +1136,12 @@ fn run(args: &RunArgs) -> anyhow::Result<()> {
                 stop.store(true, Ordering::SeqCst);
             }
         };
-        let simulate = || latdyn::solver::dynamics::run_until(&m, Some(stop.as_ref()), on_sample);
-        match &stage.make {
-            Some(make) => latdyn::assembly::with_evaluator(make(), simulate),
-            None => simulate(),
-        }
+        let ctx = latdyn::solver::dynamics::RunContext {
+            stop: Some(stop.as_ref()),
+            symbolic: None,
+            eval: stage.make.as_ref().map(|make| make()),
+        };
+        latdyn::solver::dynamics::run_in(&m, &ctx, on_sample)
     };
     let wall = t0.elapsed().as_secs_f64();
     let interrupted = matches!(

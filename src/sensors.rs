@@ -1,6 +1,5 @@
 //! Sensors: named quantities sampled from a state (the last stage of a step).
 
-use crate::assembly::Assembler;
 use crate::element;
 use crate::joint::{self, State};
 use crate::math::*;
@@ -98,14 +97,13 @@ impl Energies {
 /// force each driven dof's driver supplies.
 pub fn sample(
     model: &Model,
-    asm: &Assembler,
     s: &State,
     kind: &SensorKind,
     energies: &Energies,
     driver_forces: &[f64],
 ) -> Vec<f64> {
     let mut out = Vec::new();
-    sample_into(model, asm, s, kind, energies, driver_forces, &mut out);
+    sample_into(model, s, kind, energies, driver_forces, &mut out);
     out
 }
 
@@ -113,7 +111,6 @@ pub fn sample(
 /// twice per step; a fresh vector each time was an allocation on the step's hot path).
 pub fn sample_into(
     model: &Model,
-    asm: &Assembler,
     s: &State,
     kind: &SensorKind,
     energies: &Energies,
@@ -132,7 +129,7 @@ pub fn sample_into(
             out.extend_from_slice(&joint::node_position(model, s, *node))
         }
         SensorKind::Section { element, xi } => out.extend_from_slice(&element::section_forces(
-            &asm.elems[*element],
+            &model.elem_data[*element],
             &elem_state(*element),
             *xi,
         )),
@@ -141,7 +138,8 @@ pub fn sample_into(
             xi,
             component,
         } => out.push(
-            element::section_forces(&asm.elems[*element], &elem_state(*element), *xi)[*component],
+            element::section_forces(&model.elem_data[*element], &elem_state(*element), *xi)
+                [*component],
         ),
         SensorKind::HingeAngle { hinge } => {
             let d = model.hinges[*hinge].dof;

@@ -312,11 +312,12 @@ fn check_one(
     }
     let t0 = Instant::now();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        let sim = || dynamics::run_with(&r, Some(stop), None, |_, _| {});
-        match &stage.make {
-            Some(make) => crate::assembly::with_evaluator(make(), sim),
-            None => sim(),
-        }
+        let ctx = dynamics::RunContext {
+            stop: Some(stop),
+            symbolic: None,
+            eval: stage.make.as_ref().map(|make| make()),
+        };
+        dynamics::run_in(&r, &ctx, |_, _| {})
     }));
     out.wall_s = t0.elapsed().as_secs_f64();
     let (hist, _stats, err) = match result {

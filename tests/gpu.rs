@@ -407,10 +407,12 @@ fn kernels_match_cpu_on_the_states_of_real_simulations() {
         ("flapping_blade.toml", vec![("t_end", 0.5)]),
     ] {
         let m = common::shipped(file, &sets);
-        latdyn::assembly::with_evaluator(rec.clone(), || {
-            let (_, _, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
-            assert!(err.is_none(), "{file}: {err:?}");
-        });
+        let ctx = latdyn::solver::dynamics::RunContext {
+            eval: Some(rec.clone()),
+            ..Default::default()
+        };
+        let (_, _, err) = latdyn::solver::dynamics::run_in(&m, &ctx, |_, _| {});
+        assert!(err.is_none(), "{file}: {err:?}");
     }
     let (elems, inputs) = rec.seen.lock().unwrap().clone();
     for ctx in ctxs {

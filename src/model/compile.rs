@@ -704,6 +704,12 @@ impl Compiler<'_> {
         // hinge chains between nodes are checked acyclic where they are built
         let kin_order = super::types::kinematic_order(&node_kin)
             .expect("node hinge chains are acyclic after compilation");
+        let elem_data = elements
+            .iter()
+            .map(|e| crate::element::ElemData::new(e.props, e.frame0, x0[e.n1], x0[e.n2]))
+            .collect();
+        let dof_eq: Vec<Option<usize>> = dofs.iter().map(|d| d.eq).collect();
+        let rot_eq = rotation_equations(n_eq, &dof_eq, &spins, &hinges, &model_bodies);
         Ok(Model {
             name,
             path: self.file.to_string(),
@@ -727,6 +733,9 @@ impl Compiler<'_> {
             initial_rotation,
             repeats,
             hinge_of_dof,
+            elem_data,
+            dof_eq,
+            rot_eq,
         })
     }
 
@@ -1948,6 +1957,37 @@ impl Compiler<'_> {
 
 /// Saint-Venant torsion constant of a b × h rectangle (series approximation, within
 /// about 0.5 % for all aspect ratios).
+/// Which equations are angles: the dofs of spins and hinges, and the fixed-axis rotations
+/// in the bodies' chains.
+fn rotation_equations(
+    n_eq: usize,
+    dof_eq: &[Option<usize>],
+    spins: &[Spin],
+    hinges: &[Hinge],
+    bodies: &[Body],
+) -> Vec<bool> {
+    let mut rot_eq = vec![false; n_eq];
+    let mut mark = |d: usize| {
+        if let Some(e) = dof_eq[d] {
+            rot_eq[e] = true;
+        }
+    };
+    for sp in spins {
+        sp.dofs.iter().for_each(|&d| mark(d));
+    }
+    for h in hinges {
+        mark(h.dof);
+    }
+    for b in bodies {
+        for l in &b.chain {
+            if let ChainLink::RotateFixedAxis { dof, .. } = l {
+                mark(*dof);
+            }
+        }
+    }
+    rot_eq
+}
+
 fn rect_torsion(b: f64, h: f64) -> f64 {
     let (a, c) = if b >= h { (b, h) } else { (h, b) };
     a * c.powi(3) * (1.0 / 3.0 - 0.21 * (c / a) * (1.0 - c.powi(4) / (12.0 * a.powi(4))))

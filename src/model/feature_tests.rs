@@ -284,18 +284,10 @@ fn driver_sensor_compiles_to_the_global_dof() {
     assert_eq!(sensors::units(&m.sensors[0].kind), ["N"]);
     assert_eq!(sensors::units(&m.sensors[1].kind), ["N*m"]);
 
-    let asm = Assembler::new(&m);
     let s = State::new(&m);
     let mut forces = vec![0.0; m.dofs.len()];
     forces[rz] = -7.5;
-    let v = sensors::sample(
-        &m,
-        &asm,
-        &s,
-        &m.sensors[1].kind,
-        &Default::default(),
-        &forces,
-    );
+    let v = sensors::sample(&m, &s, &m.sensors[1].kind, &Default::default(), &forces);
     assert_eq!(v, [-7.5]);
 
     let sensor = |body: &str, dof: &str| {
@@ -403,12 +395,11 @@ fn beam_nodes_sensor() {
     assert_eq!(sensors::components(k), ["n0", "n1", "n2"]);
     assert_eq!(sensors::units(k), ["m", "m", "m"]);
 
-    let asm = Assembler::new(&m);
     let mut s = State::new(&m);
     s.node_u[0] = [1.0, 2.0, 3.0];
     s.node_u[2] = [4.0, 5.0, 6.0];
     s.node_u[1] = [7.0, 8.0, 9.0];
-    let sample = |k: &SensorKind| sensors::sample(&m, &asm, &s, k, &Default::default(), &[]);
+    let sample = |k: &SensorKind| sensors::sample(&m, &s, k, &Default::default(), &[]);
     assert_eq!(sample(k), [3.0, 6.0, 9.0]);
     assert_eq!(sample(&m.sensors[1].kind), [1.0, 4.0, 7.0]);
 

@@ -332,6 +332,14 @@ pub struct Model {
     pub initial_rotation: Option<(Vec3, Vec3)>,
     /// what each `[[repeat]]` generated (empty for a file without repeats)
     pub repeats: Vec<super::repeat::RepeatSummary>,
+    /// each element's undeformed constants (reference frame, chord, length, section) in
+    /// the form the element stage reads, parallel to `elements`: compiled once here so
+    /// that every run, solver and backend of this model reads the same array
+    pub elem_data: Vec<crate::element::ElemData>,
+    /// `dofs[d].eq` as a dense array: the scatter reads it for every chain column
+    pub dof_eq: Vec<Option<usize>>,
+    /// equations that are angles (spins, hinges, body rotations): Newton limits their step
+    pub rot_eq: Vec<bool>,
 }
 
 impl Model {

@@ -11,6 +11,7 @@ pub use super::linear::StageTimes;
 use super::linear::{norm_inf, Convergence, NewtonSystem};
 use super::statics::worst_dof;
 use crate::assembly::{Assembler, AssemblyInfo, Coeffs};
+use crate::element::ElementEval;
 use crate::joint::{self, State};
 use crate::linalg::SparseLuSymbolic;
 use crate::model::Model;
@@ -447,24 +448,28 @@ enum StepResult {
 
 impl<'m> Integrator<'m> {
     pub fn new(model: &'m Model) -> Result<Integrator<'m>, DynamicsError> {
-        Self::with_symbolic(model, None)
+        Self::with_context(model, &RunContext::default())
     }
 
-    /// As [`Integrator::new`], reusing a symbolic factorization analysed for the same
-    /// sparsity pattern (an ensemble analyses it once for all variants); a symbolic
-    /// factorization of another pattern is ignored.
-    pub fn with_symbolic(
+    /// As [`Integrator::new`], with the element stage of `ctx` and reusing its symbolic
+    /// factorization if it was analysed for the same sparsity pattern (an ensemble
+    /// analyses it once for all variants); a symbolic factorization of another pattern is
+    /// ignored.
+    pub fn with_context(
         model: &'m Model,
-        symbolic: Option<&Arc<SparseLuSymbolic>>,
+        ctx: &RunContext,
     ) -> Result<Integrator<'m>, DynamicsError> {
         let s = State::new(model);
-        let asm = Assembler::new(model);
-        let sys = NewtonSystem::with_symbolic(model, &asm, &s, symbolic)?;
+        let asm = match &ctx.eval {
+            Some(eval) => Assembler::with_eval(model, eval.clone()),
+            None => Assembler::new(model),
+        };
+        let sys = NewtonSystem::with_symbolic(model, &asm, &s, ctx.symbolic)?;
         let nd = model.dofs.len();
         let mut it = Integrator {
             model,
-            dx: vec![0.0; asm.n_eq],
-            incr: vec![0.0; asm.n_eq],
+            dx: vec![0.0; model.n_eq],
+            incr: vec![0.0; model.n_eq],
             start: s.clone(),
             trial: s.clone(),
             aux0: vec![0.0; nd],
@@ -478,7 +483,7 @@ impl<'m> Integrator<'m> {
                 })
             }),
             trend_smooth: false,
-            te: TimeError::new(model, &s, asm.n_eq),
+            te: TimeError::new(model, &s, model.n_eq),
             lock_retries: 0,
             accuracy_floor_hit: false,
             scratch_y: Vec::new(),
@@ -586,7 +591,6 @@ impl<'m> Integrator<'m> {
             }
             sensors::sample_into(
                 model,
-                &self.asm,
                 &self.trial,
                 &sn.kind,
                 &self.energies,
@@ -596,7 +600,6 @@ impl<'m> Integrator<'m> {
             let ym = &mut self.te.ym;
             sensors::sample_into(
                 model,
-                &self.asm,
                 &self.te.moved,
                 &sn.kind,
                 &self.energies,
@@ -859,7 +862,7 @@ impl<'m> Integrator<'m> {
             if conv.converged(res, info.force_scale)
                 || conv.stalled_at_roundoff(last_correction, self.coord_scale)
             {
-                if !self.asm.deformation_in_range(model, s) {
+                if !crate::assembly::deformation_in_range(model, s) {
                     return Ok(StepResult::Failed);
                 }
                 converged = Some((it, info));
@@ -1178,16 +1181,7 @@ impl<'m> Integrator<'m> {
         self.model
             .sensors
             .iter()
-            .map(|sn| {
-                sensors::sample(
-                    self.model,
-                    &self.asm,
-                    &self.s,
-                    &sn.kind,
-                    &self.energies,
-                    &self.sys.gen,
-                )
-            })
+            .map(|sn| sensors::sample(self.model, &self.s, &sn.kind, &self.energies, &self.sys.gen))
             .collect()
     }
 }
@@ -1198,14 +1192,10 @@ impl<'m> Integrator<'m> {
 /// at the first step `dt` gives the ranges to expect; half of each is the floor (the
 /// probe's own error can make its ranges low, e.g. 17× at Ω̄ = 20 with dt = 0.01, which
 /// only makes the controller stricter than needed). A failed probe gives what it reached.
-fn range_floors(
-    model: &Model,
-    stop: Option<&std::sync::atomic::AtomicBool>,
-    symbolic: Option<&Arc<SparseLuSymbolic>>,
-) -> Vec<Vec<f64>> {
+fn range_floors(model: &Model, ctx: &RunContext) -> Vec<Vec<f64>> {
     let mut probe = model.clone();
     probe.solver.accuracy = None;
-    let (hist, _, _) = run_with(&probe, stop, symbolic, |_, _| {});
+    let (hist, _, _) = run_in(&probe, ctx, |_, _| {});
     hist.values
         .iter()
         .zip(&model.sensors)
@@ -1258,23 +1248,52 @@ pub fn run_until(
     run_with(model, stop, None, on_sample)
 }
 
+/// What a run shares with the campaign around it. The default is a run on its own: the
+/// CPU element stage, no stop flag, its own symbolic factorization.
+#[derive(Clone, Default)]
+pub struct RunContext<'a> {
+    /// once set, the run stops at its next output sample ([`DynamicsError::Interrupted`])
+    pub stop: Option<&'a std::sync::atomic::AtomicBool>,
+    /// a symbolic factorization shared by an ensemble's variants
+    pub symbolic: Option<&'a Arc<SparseLuSymbolic>>,
+    /// the element stage (None: the CPU functions)
+    pub eval: Option<Arc<dyn ElementEval>>,
+}
+
 /// As [`run_until`], reusing a symbolic factorization shared by an ensemble.
 pub fn run_with(
     model: &Model,
     stop: Option<&std::sync::atomic::AtomicBool>,
     symbolic: Option<&Arc<SparseLuSymbolic>>,
+    on_sample: impl FnMut(f64, &[Vec<f64>]),
+) -> (History, RunStats, Option<DynamicsError>) {
+    let ctx = RunContext {
+        stop,
+        symbolic,
+        eval: None,
+    };
+    run_in(model, &ctx, on_sample)
+}
+
+/// Run the model from t = 0 to t_end in the context `ctx` (element stage, shared
+/// symbolic factorization, stop flag); `on_sample` sees every output sample as it comes.
+/// On failure the history so far is returned with the error.
+pub fn run_in(
+    model: &Model,
+    ctx: &RunContext,
     mut on_sample: impl FnMut(f64, &[Vec<f64>]),
 ) -> (History, RunStats, Option<DynamicsError>) {
+    let stop = ctx.stop;
     let mut hist = History {
         t: Vec::new(),
         values: vec![Vec::new(); model.sensors.len()],
     };
-    let mut integ = match Integrator::with_symbolic(model, symbolic) {
+    let mut integ = match Integrator::with_context(model, ctx) {
         Ok(i) => i,
         Err(e) => return (hist, RunStats::default(), Some(e)),
     };
     if model.solver.accuracy.is_some() {
-        integ.te.floor = range_floors(model, stop, symbolic);
+        integ.te.floor = range_floors(model, ctx);
     }
     let mut output_s = 0.0;
     // (balance at the previous sample, locked hinges then; growth and loss so far of the

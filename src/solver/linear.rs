@@ -171,10 +171,10 @@ impl NewtonSystem {
         let mut gen = vec![0.0; model.dofs.len()];
         let all = Coeffs::dynamic(1.0, 1.0, 1.0);
         asm.evaluate(model, s, all, &mut gen, Some(&mut ps));
-        for i in 0..asm.n_eq {
+        for i in 0..model.n_eq {
             ps.entries.push((i, i));
         }
-        let pattern = SparsePattern::new(asm.n_eq, &ps.entries);
+        let pattern = SparsePattern::new(model.n_eq, &ps.entries);
         let lu = match symbolic {
             Some(sym) if sym.analyses(&pattern) => SparseLu::from_symbolic(Arc::clone(sym)),
             _ => SparseLu::new(&pattern)?,
@@ -185,7 +185,7 @@ impl NewtonSystem {
             pattern,
             lu,
             gen,
-            r: vec![0.0; asm.n_eq],
+            r: vec![0.0; model.n_eq],
             times: StageTimes::default(),
         })
     }
@@ -212,7 +212,7 @@ impl NewtonSystem {
         } else {
             asm.evaluate(model, s, c, &mut self.gen, None)
         };
-        asm.gather(model, s, &self.gen, &mut self.r);
+        crate::assembly::gather(model, s, &self.gen, &mut self.r);
         let t1 = Instant::now();
         self.times.assembly_s += (t1 - t0).as_secs_f64();
         if factor {

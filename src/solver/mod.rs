@@ -26,9 +26,8 @@ pub struct StaticSolution {
 pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsError> {
     let mut s = State::new(model);
     let report = statics::solve(model, &mut s)?;
-    let asm = Assembler::new(model);
-    let strain: f64 = asm
-        .elems
+    let strain: f64 = model
+        .elem_data
         .iter()
         .enumerate()
         .map(|(ie, e)| crate::element::strain_energy(e, &crate::joint::elem_state(model, &s, ie)))
@@ -40,7 +39,7 @@ pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsEr
     };
     // generalized forces at equilibrium: at driven dofs, what the drivers supply
     let mut gen = vec![0.0; model.dofs.len()];
-    asm.evaluate(
+    Assembler::new(model).evaluate(
         model,
         &s,
         crate::assembly::Coeffs::statics(1.0),
@@ -50,7 +49,7 @@ pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsEr
     let vals = model
         .sensors
         .iter()
-        .map(|sn| sensors::sample(model, &asm, &s, &sn.kind, &en, &gen))
+        .map(|sn| sensors::sample(model, &s, &sn.kind, &en, &gen))
         .collect();
     Ok(StaticSolution {
         state: s,

@@ -89,7 +89,7 @@ pub const DATA_ROUNDOFF: f64 = 64.0 * f64::EPSILON;
 /// Dense K (tangent at load factor 1) and M at state `s`, row-major n_eq × n_eq.
 pub fn matrices(model: &Model, s: &State) -> (Vec<f64>, Vec<f64>) {
     let asm = Assembler::new(model);
-    let n = asm.n_eq;
+    let n = model.n_eq;
     let mut gen = vec![0.0; model.dofs.len()];
     let mut k = vec![0.0; n * n];
     let mut m = vec![0.0; n * n];

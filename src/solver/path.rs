@@ -260,9 +260,8 @@ impl Ctx<'_> {
     fn sample(&mut self, s: &mut State, mu: f64) -> Vec<Vec<f64>> {
         let model = self.model;
         self.place(s, mu);
-        let strain: f64 = self
-            .asm
-            .elems
+        let strain: f64 = model
+            .elem_data
             .iter()
             .enumerate()
             .map(|(ie, e)| crate::element::strain_energy(e, &joint::elem_state(model, s, ie)))
@@ -283,7 +282,7 @@ impl Ctx<'_> {
         model
             .sensors
             .iter()
-            .map(|sn| sensors::sample(model, &self.asm, s, &sn.kind, &en, &gen))
+            .map(|sn| sensors::sample(model, s, &sn.kind, &en, &gen))
             .collect()
     }
 
@@ -425,7 +424,7 @@ fn follow_into(
     let mut halvings = 0;
     loop {
         let mut pred: Vec<f64> = ut.iter().map(|x| x * dmu0).collect();
-        cx.asm.limit_rotation_step(&mut pred, MAX_NEWTON_ANGLE);
+        crate::assembly::limit_rotation_step(cx.model, &mut pred, MAX_NEWTON_ANGLE);
         joint::apply_increment(model, s, &pred);
         if let Some(it) = cx.newton_fixed(s, dmu0)? {
             res.newton_iterations += it;
@@ -719,7 +718,7 @@ fn corrector(
     let mut dmu = dmu_pred;
     {
         let mut pred = du.clone();
-        cx.asm.limit_rotation_step(&mut pred, MAX_NEWTON_ANGLE);
+        crate::assembly::limit_rotation_step(cx.model, &mut pred, MAX_NEWTON_ANGLE);
         if pred != du {
             return Ok(Err((
                 "(predictor rotation above the Newton limit)".into(),
@@ -739,7 +738,7 @@ fn corrector(
         }
         let scale = info.as_ref().map_or(0.0, |i| i.force_scale);
         if conv.converged(res, scale) {
-            if !cx.asm.deformation_in_range(model, s) {
+            if !crate::assembly::deformation_in_range(model, s) {
                 return Ok(Err(("(element deformation out of range)".into(), res)));
             }
             return Ok(Ok((du, dmu, it)));
@@ -793,13 +792,13 @@ fn corrector(
         if norm_inf(&delta)
             <= Convergence::ROUNDOFF_CORRECTION * f64::EPSILON * statics::coord_scale(model)
         {
-            if !cx.asm.deformation_in_range(model, s) {
+            if !crate::assembly::deformation_in_range(model, s) {
                 return Ok(Err(("(element deformation out of range)".into(), res)));
             }
             return Ok(Ok((du, dmu, it)));
         }
         let before = delta.clone();
-        cx.asm.limit_rotation_step(&mut delta, MAX_NEWTON_ANGLE);
+        crate::assembly::limit_rotation_step(cx.model, &mut delta, MAX_NEWTON_ANGLE);
         if delta != before {
             return Ok(Err((
                 "(corrector rotation above the Newton limit)".into(),

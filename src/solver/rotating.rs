@@ -199,13 +199,13 @@ impl Frame<'_> {
         let s = self.state(xi, xid, xidd);
         let c = Coeffs::dynamic(0.0, 0.0, 0.0);
         self.asm.evaluate(self.model, &s, c, &mut self.gen, None);
-        self.asm.gather(self.model, &s, &self.gen, &mut self.r);
+        crate::assembly::gather(self.model, &s, &self.gen, &mut self.r);
         self.r.clone()
     }
 
     /// Dense ∂r/∂ξ (`Rate::Position`), ∂r/∂ξ̇ or ∂r/∂ξ̈ by central differences, row-major n×n.
     fn jacobian(&mut self, wrt: Rate) -> Vec<f64> {
-        let n = self.asm.n_eq;
+        let n = self.model.n_eq;
         let z = vec![0.0; n];
         let mut mat = vec![0.0; n * n];
         let h = match wrt {
@@ -342,7 +342,7 @@ pub fn rotating_modes_with_shapes(
         }
         let mut dx: Vec<f64> = r.iter().map(|x| -x).collect();
         dense_solve(&k, n, &mut dx)?;
-        fr.asm.limit_rotation_step(&mut dx, 0.5);
+        crate::assembly::limit_rotation_step(fr.model, &mut dx, 0.5);
         let mut b = fr.base.clone();
         joint::apply_increment(model, &mut b, &dx);
         joint::update_kinematics(model, &mut b);

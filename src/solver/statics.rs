@@ -66,7 +66,7 @@ pub fn newton(
     lambda: f64,
 ) -> Result<Option<usize>, StaticsError> {
     let c = Coeffs::statics(lambda);
-    let mut dx = vec![0.0; asm.n_eq];
+    let mut dx = vec![0.0; model.n_eq];
     let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
     // first (tangent) prediction and the distance Newton travels after it
     let (mut first, mut travel) = (0.0f64, 0.0f64);
@@ -84,7 +84,7 @@ pub fn newton(
         // model at zero load, EA = 1e18: the residual is exactly 0)
         let scale = info.map_or(0.0, |i| i.force_scale);
         if conv.converged(res, scale) {
-            return Ok(asm.deformation_in_range(model, s).then_some(it));
+            return Ok(crate::assembly::deformation_in_range(model, s).then_some(it));
         }
         if !factored || sys.solve_neg_residual(&mut dx).is_err() {
             return Ok(None);
@@ -93,9 +93,9 @@ pub fn newton(
         // to equilibrium (the stress-free reference of a curved mesh at zero load, whose
         // residual is round-off of the element forces with no force scale to compare to)
         if norm_inf(&dx) <= Convergence::ROUNDOFF_CORRECTION * f64::EPSILON * coord_scale(model) {
-            return Ok(asm.deformation_in_range(model, s).then_some(it));
+            return Ok(crate::assembly::deformation_in_range(model, s).then_some(it));
         }
-        asm.limit_rotation_step(&mut dx, MAX_NEWTON_ANGLE);
+        crate::assembly::limit_rotation_step(model, &mut dx, MAX_NEWTON_ANGLE);
         let step = norm_inf(&dx);
         if it == 0 {
             first = step;
@@ -231,7 +231,7 @@ fn stall(
 /// not hide its soft directions below a relative threshold. Returns (scaled K, D).
 fn scaled_tangent(model: &Model, s: &State, lambda: f64) -> (Vec<f64>, Vec<f64>) {
     let asm = Assembler::new(model);
-    let n = asm.n_eq;
+    let n = model.n_eq;
     let mut gen = vec![0.0; model.dofs.len()];
     let mut k = vec![0.0; n * n];
     asm.evaluate(
