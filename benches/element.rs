@@ -1,6 +1,7 @@
 //! Element kernel timings (prints, never asserts): calls per second of the internal
 //! force + tangent and of the inertia terms, on a deformed, rotated element.
 
+use latdyn::element::reference::{inertia_columns, internal_force_tangent_columns};
 use latdyn::element::*;
 use latdyn::math::*;
 use latdyn::model::BeamProps;

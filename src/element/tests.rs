@@ -2,6 +2,7 @@
 //! under rigid motion, mass matrix against exact rigid-body inertia, inertia terms
 //! against the exact rigid-rotation inertial force and their velocity derivative.
 
+use super::reference::*;
 use super::*;
 use crate::math::*;
 use crate::model::BeamProps;
@@ -229,7 +230,7 @@ fn exact_rigid_inertia(e: &ElemData, s: &ElemState, x1: Vec3, x2: Vec3) -> (f64,
     let l = e.l0;
     let m = p.rho_a * l;
     let c = scale(add(x1, x2), 0.5);
-    let k = beam::deformation(e, s);
+    let k = deformation(e, s);
     let ey = col(&k.tc, 1);
     let ez = col(&k.tc, 2);
     let dir = col(&k.tc, 0);
@@ -384,7 +385,7 @@ fn elongation_is_computed_without_cancellation() {
         u2: scale(dir, 2.0e-9),
         r2: I3,
     };
-    let k = beam::deformation(&e, &s);
+    let k = deformation(&e, &s);
     assert!(
         (k.u1 - 2.0e-9).abs() < 1e-20 + 1e-6 * 2.0e-9,
         "u1 = {:e}",
