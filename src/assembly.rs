@@ -37,7 +37,7 @@ struct Scratch {
 
 /// Cumulative wall time of the assembly stages [s] (see [`Assembler::stage_times`]).
 #[derive(Clone, Copy, Debug, Default)]
-pub struct StageTimes {
+pub struct AssemblyTimes {
     /// the element stage (CPU functions or GPU round trip)
     pub element_s: f64,
     /// everything else in `evaluate`: gather, projection through the chains, scatter
@@ -178,10 +178,10 @@ impl Assembler {
     }
 
     /// Cumulative time split of all `evaluate` calls so far.
-    pub fn stage_times(&self) -> StageTimes {
+    pub fn stage_times(&self) -> AssemblyTimes {
         let el = self.element_ns.load(Ordering::Relaxed) as f64 * 1e-9;
         let tot = self.total_ns.load(Ordering::Relaxed) as f64 * 1e-9;
-        StageTimes {
+        AssemblyTimes {
             element_s: el,
             assembly_s: (tot - el).max(0.0),
             calls: self.calls.load(Ordering::Relaxed),

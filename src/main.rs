@@ -879,7 +879,7 @@ fn modes(args: &ModesArgs) -> anyhow::Result<()> {
 fn rotating_modes(
     args: &ModesArgs,
     m: &Model,
-    spin: latdyn::solver::rotating::Spin,
+    spin: latdyn::solver::rotating::SteadySpin,
 ) -> anyhow::Result<()> {
     let rm = latdyn::solver::rotating::rotating_modes(m, spin)
         .with_context(|| format!("{}: rotating-frame modes", m.path))?;

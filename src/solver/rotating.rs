@@ -27,7 +27,7 @@ const STEADY_MAX_ITER: usize = 50;
 
 /// A constant-speed rotation found in the model.
 #[derive(Clone, Copy, Debug)]
-pub struct Spin {
+pub struct SteadySpin {
     /// angular velocity vector (global)
     pub omega: Vec3,
     /// a point on the axis
@@ -38,7 +38,7 @@ pub struct Spin {
 
 /// The first body rotation dof driven at constant rate (zero acceleration over the run),
 /// if any; a zero rate counts as no spin.
-pub fn find_spin(model: &Model) -> Option<Spin> {
+pub fn find_spin(model: &Model) -> Option<SteadySpin> {
     for b in &model.bodies {
         for l in &b.chain {
             if let ChainLink::RotateFixedAxis { dof, axis } = *l {
@@ -51,7 +51,7 @@ pub fn find_spin(model: &Model) -> Option<Spin> {
                         (v - r0).abs() <= 1e-12 * r0.abs().max(1.0) && a.abs() <= 1e-12
                     });
                     if steady && r0 != 0.0 {
-                        return Some(Spin {
+                        return Some(SteadySpin {
                             omega: scale(axis, r0),
                             center: b.x0,
                             dof,
@@ -122,7 +122,7 @@ fn roles(model: &Model) -> Vec<Role> {
 struct Frame<'a> {
     model: &'a Model,
     asm: Assembler,
-    spin: Spin,
+    spin: SteadySpin,
     roles: Vec<Role>,
     /// base state (reference or current steady estimate)
     base: State,
@@ -283,14 +283,14 @@ impl RotatingModes {
 }
 
 /// Find the steady rotating state and the modes about it.
-pub fn rotating_modes(model: &Model, spin: Spin) -> Result<RotatingModes, LinalgError> {
+pub fn rotating_modes(model: &Model, spin: SteadySpin) -> Result<RotatingModes, LinalgError> {
     rotating_modes_with_shapes(model, spin, 0)
 }
 
 /// As [`rotating_modes`], with the complex shapes of the lowest `shapes` modes.
 pub fn rotating_modes_with_shapes(
     model: &Model,
-    spin: Spin,
+    spin: SteadySpin,
     shapes: usize,
 ) -> Result<RotatingModes, LinalgError> {
     let mut base = State::new(model);
