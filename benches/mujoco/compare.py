@@ -343,6 +343,7 @@ def plot(R, path):
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        import matplotlib.ticker  # noqa: F401
     except Exception as e:  # pragma: no cover
         log("no plot:", e)
         return False
@@ -359,6 +360,7 @@ def plot(R, path):
             for w, e, ne, dt in pts:
                 ax.annotate(f"{ne}/{dt:g}", (w, e), fontsize=6, xytext=(2, 2),
                             textcoords="offset points")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel("wall time per run [s] (min of repeats)")
         ax.set_ylabel("relative error")
         ax.set_title(title, fontsize=9)
@@ -584,9 +586,9 @@ def main():
     p.add_argument("--repeat", type=int, default=3,
                    help="interleaved rounds; each run's minimum wall time is kept (≥ 3)")
     p.add_argument("--lat-variants", type=int, default=None,
-                   help="latdyn campaign size (default 40, --quick 10)")
+                   help="latdyn campaign size (default 100, --quick 10)")
     p.add_argument("--mj-variants", type=int, default=None,
-                   help="MuJoCo campaign size (default 40, --quick 10)")
+                   help="MuJoCo campaign size (default 100, --quick 10)")
     p.add_argument("--out", default=os.path.join(REPO, "docs", "bench", "mujoco.md"))
     p.add_argument("--png", default=os.path.join(REPO, "docs", "bench", "mujoco.png"))
     p.add_argument("--raw", default=os.path.join(tempfile.gettempdir(),
@@ -601,7 +603,7 @@ def main():
             R = json.load(f)
         render(R, args.out, args.png)
         return
-    n_def = 10 if args.quick else 40
+    n_def = 10 if args.quick else 100
     args.lat_variants = args.lat_variants or n_def
     args.mj_variants = args.mj_variants or n_def
     t_start = time.time()
