@@ -9,8 +9,8 @@ definitions and signal processing are those of benches/exudyn/compare.py (import
 the two peer reports are directly comparable. MuJoCo's model: mujoco_models.py.
 
     cargo build --release
-    pip install mujoco numpy scipy matplotlib h5py
-    python3 benches/mujoco/compare.py                 # full run, ~25 min on 2 loaded cores
+    pip install mujoco exudyn numpy scipy matplotlib h5py
+    python3 benches/mujoco/compare.py                 # full run, ~15-25 min on 2 loaded cores
     python3 benches/mujoco/compare.py --quick         # shorter ladders, smaller campaigns
     python3 benches/mujoco/compare.py --render RAW.json   # re-render from a run's raw results
 
@@ -403,8 +403,13 @@ def render(R, md_path, png_path):
       f"{s['repeat']} times, and the **minimum** wall time of each run is reported (all "
       f"runs are listed). Campaigns alternate likewise and keep the fastest of "
       f"{s['repeat']}.")
-    A("- Single-threaded for time-to-error: `latdyn run` is single-threaded; MuJoCo's "
-      "`mj_step` runs on the calling thread. latdyn wall = the whole process (start, parse, "
+    A("- Single-threaded for time-to-error: `latdyn run` has no thread option (only "
+      "`sweep` has `--threads`); its sparse LU runs faer with `Par::Seq` (src/linalg.rs) "
+      "and rayon is used only by sweeps, `--verify` and `--path`; checked: "
+      "`/usr/bin/time -f %P latdyn run models/spinup_beam.toml --set elements=10 --set "
+      "dt=0.005 --json` used 48 % of one core on the loaded machine (2 OS threads in the "
+      "process, no parallel compute). MuJoCo's `mj_step` runs on the calling thread. "
+      "latdyn wall = the whole process (start, parse, "
       "compile, integrate, JSON out); MuJoCo wall = XML compile + the step loop in-process "
       "(the Python interpreter and `import mujoco` not counted; the Python loop around "
       "`mj_step` is counted: it sets the hub drive and reads the tip every step), as "
@@ -520,8 +525,9 @@ def render(R, md_path, png_path):
     A("")
     A("```sh")
     A("cargo build --release")
-    A("pip install mujoco numpy scipy matplotlib h5py")
-    A("python3 benches/mujoco/compare.py --latdyn target/release/latdyn   # ~25 min on 2 loaded cores")
+    A("pip install mujoco exudyn numpy scipy matplotlib h5py   # exudyn: benches/exudyn/compare.py is imported")
+    A("python3 benches/mujoco/compare.py --latdyn target/release/latdyn --raw docs/bench/mujoco_raw.json   # ~15-25 min on 2 loaded cores")
+    A("python3 benches/mujoco/compare.py --quick --repeat 3   # shorter ladders, 10-variant campaigns")
     A("python3 benches/mujoco/compare.py --render RAW.json   # re-render from raw results")
     A("```")
     A("")
