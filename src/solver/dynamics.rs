@@ -73,6 +73,14 @@ pub const ACCURACY_SLACK: f64 = 1.5;
 
 /// Safety factor of the step controller: aim 10 % under the allowed error.
 const SAFETY: f64 = 0.9;
+/// Bounds of the step factor after a step rejected for accuracy: at least a 10 % cut (a
+/// rejected step must shrink), at most a cut to a tenth (one outlier estimate must not
+/// collapse the step).
+const REJECT_FACTOR_MIN: f64 = 0.1;
+const REJECT_FACTOR_MAX: f64 = 0.9;
+/// A modified-Newton iteration that reduces the residual by less than this factor gets a
+/// fresh Jacobian (convergence slower than this costs more iterations than a refactor).
+const NEWTON_CONTRACTION: f64 = 0.25;
 
 /// Generalized-α parameters from the spectral radius at infinite frequency.
 #[derive(Clone, Copy, Debug)]
@@ -871,7 +879,7 @@ impl<'m> Integrator<'m> {
             // slow contraction (or growth) with the old Jacobian: refresh it here, at
             // this state, before taking the step
             if !factor
-                && res > 0.25 * prev_res
+                && res > NEWTON_CONTRACTION * prev_res
                 && self
                     .sys
                     .evaluate(model, &self.asm, s, coeffs, true)
@@ -1085,7 +1093,7 @@ impl<'m> Integrator<'m> {
                     self.stats.rejected_steps += 1;
                     self.stats.rejected_for_accuracy += 1;
                     // the local error goes as h² against its allowance (error per unit step)
-                    let fac = (SAFETY * err.powf(-0.5)).clamp(0.1, 0.9);
+                    let fac = (SAFETY * err.powf(-0.5)).clamp(REJECT_FACTOR_MIN, REJECT_FACTOR_MAX);
                     self.h = (h * fac).max(self.model.solver.dt_min);
                 }
                 StepResult::PastLock { fraction } => {

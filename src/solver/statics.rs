@@ -131,6 +131,12 @@ pub const MAX_LOAD_STEPS: usize = 10_000;
 
 /// Load steps over which the progress of λ is measured for the creep test.
 const CREEP_WINDOW: usize = 1000;
+/// Load stepping: the increment grows by this factor after an easy step (Newton in at most
+/// `EASY_STEP_ITERS` iterations), is halved after a failed one, and the stepping gives up
+/// below `MIN_LOAD_STEP` (a fraction of the full load).
+const LOAD_STEP_GROWTH: f64 = 1.5;
+const EASY_STEP_ITERS: usize = 5;
+const MIN_LOAD_STEP: f64 = 1e-7;
 
 /// Solve for static equilibrium under the full loads, starting from `s`.
 pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError> {
@@ -170,15 +176,15 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
                 lambda = target;
                 rep.load_steps += 1;
                 rep.newton_iterations += iters;
-                if iters <= 5 {
-                    dl *= 1.5;
+                if iters <= EASY_STEP_ITERS {
+                    dl *= LOAD_STEP_GROWTH;
                 }
             }
             None => {
                 *s = saved;
                 rep.rejected_steps += 1;
                 dl *= 0.5;
-                if dl < 1e-7 {
+                if dl < MIN_LOAD_STEP {
                     joint::update_kinematics(model, s);
                     if let Some(e) = diagnose(model, s, lambda) {
                         return Err(e);
