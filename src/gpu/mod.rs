@@ -13,6 +13,7 @@
 
 pub mod batch;
 pub mod layout;
+pub mod policy;
 
 use std::sync::Mutex;
 use std::time::Instant;
