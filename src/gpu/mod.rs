@@ -552,7 +552,7 @@ impl GpuContext {
             up_acc: Vec::new(),
             rot: Vec::new(),
             max_groups: limits.max_compute_workgroups_per_dimension,
-            max_binding: limits.max_storage_buffer_binding_size as u64,
+            max_binding: limits.max_storage_buffer_binding_size,
             corotate,
         })
     }
