@@ -609,7 +609,11 @@ impl GpuContext {
             }
         };
         let off = t.segs[id].offset;
-        self.grow_table(off + n)?;
+        if let Err(e) = self.grow_table(off + n) {
+            // not on the device: the slots must not be used
+            self.table.segs[id].live = false;
+            return Err(e);
+        }
         self.write_segment(id);
         Ok(Segment(id))
     }
