@@ -1,9 +1,13 @@
 //! GPU element stage against the CPU (prints, never asserts): for the rotating blade
 //! (models/flapping_blade.toml) and the Mini-Mast bay (models/minimast_bay.toml) at
 //! 1, 10, 100, 1000 variants, element evaluations per second on the CPU (f64, one thread)
-//! and on every adapter × precision found, the time split of a GPU batch (upload, kernel,
-//! download), the error against the f64 CPU result, and the per-Newton-iteration split of
-//! a real CPU run (element stage, assembly, factorization + integrator).
+//! and on every adapter × precision found, for the full evaluation (f, K, M, S, C) and the
+//! residual-only one (f and the inertial forces, modified-Newton iterations): the time
+//! split of a GPU batch (upload of the per-iteration inputs, of which the content check of
+//! the resident model data; kernel; download), the bytes sent and read back per element,
+//! the model data uploads over all repetitions (once: it stays on the device), the error
+//! against the f64 CPU result, and the per-Newton-iteration split of a real CPU run
+//! (element stage, assembly, factorization + integrator).
 //!
 //! The variants' element states are states recorded from a short real simulation of the
 //! model (different time steps standing in for different variants), so the batch holds
@@ -126,8 +130,18 @@ fn main() {
         );
         let seen = rec.seen.lock().unwrap().clone();
         println!(
-            "{:>9} {:>8} | {:<44} {:>12} {:>9} {:>9} {:>9} {:>9}",
-            "variants", "elements", "backend", "evals/s", "upload", "kernel", "download", "error"
+            "{:>9} {:>8} | {:<44} {:<8} {:>12} {:>9} {:>9} {:>9} {:>9} {:>11} {:>9}",
+            "variants",
+            "elements",
+            "backend",
+            "eval",
+            "evals/s",
+            "upload",
+            "(check)",
+            "kernel",
+            "download",
+            "B up/dn/el",
+            "error"
         );
         for &nv in counts {
             let mut elems = Vec::new();
@@ -139,54 +153,110 @@ fn main() {
             }
             let n = elems.len();
             let mut cpu = vec![ElemOut::default(); n];
-            let reps = (20_000 / n).max(1);
-            let t = Instant::now();
-            for _ in 0..reps {
-                CpuEval.evaluate(&elems, &inputs, true, &mut cpu).unwrap();
-            }
-            let dt = t.elapsed().as_secs_f64() / reps as f64;
-            println!(
-                "{nv:>9} {n:>8} | {:<44} {:>12.0} {:>9} {:>9} {:>9} {:>9}",
-                "cpu f64 (1 thread)",
-                n as f64 / dt,
-                "-",
-                "-",
-                "-",
-                "ref"
-            );
-            for ctx in ctxs.iter_mut() {
-                let mut out = vec![ElemOut::default(); n];
-                // warm-up: buffer allocation, pipeline first use
-                if let Err(e) = ctx.evaluate(&elems, &inputs, true, &mut out) {
-                    println!("{}: {e}", ctx.adapter.label());
-                    continue;
-                }
-                let mut tt = GpuTimes::default();
-                let reps = (2_000 / n).clamp(1, 20);
+            for residual in [false, true] {
+                let kind = if residual { "residual" } else { "full" };
+                let reps = (20_000 / n).max(1);
                 let t = Instant::now();
                 for _ in 0..reps {
-                    tt.add(&ctx.evaluate(&elems, &inputs, true, &mut out).unwrap());
+                    if residual {
+                        CpuEval.evaluate_residual(&elems, &inputs, true, &mut cpu)
+                    } else {
+                        CpuEval.evaluate(&elems, &inputs, true, &mut cpu)
+                    }
+                    .unwrap();
                 }
                 let dt = t.elapsed().as_secs_f64() / reps as f64;
-                let r = reps as f64;
                 println!(
-                    "{nv:>9} {n:>8} | {:<44} {:>12.0} {:>7.2}ms {:>7.2}ms {:>7.2}ms {:>9.1e}",
-                    format!("{} {}", ctx.adapter.label(), ctx.precision.as_str()),
+                    "{nv:>9} {n:>8} | {:<44} {kind:<8} {:>12.0} {:>9} {:>9} {:>9} {:>9} {:>11} {:>9}",
+                    "cpu f64 (1 thread)",
                     n as f64 / dt,
-                    1e3 * tt.upload_s / r,
-                    1e3 * tt.kernel_s / r,
-                    1e3 * tt.download_s / r,
-                    worst(
-                        &elems,
-                        &cpu,
-                        &out,
-                        match ctx.precision {
-                            Precision::F32 => f32::EPSILON as f64 / 2.0,
-                            Precision::F64 => f64::EPSILON / 2.0,
-                        }
-                    )
+                    "-",
+                    "-",
+                    "-",
+                    "-",
+                    "-",
+                    "ref"
                 );
+                for ctx in ctxs.iter_mut() {
+                    let mut out = vec![ElemOut::default(); n];
+                    let run = |ctx: &mut GpuContext, out: &mut [ElemOut]| {
+                        if residual {
+                            ctx.evaluate_residual(&elems, &inputs, true, out)
+                        } else {
+                            ctx.evaluate(&elems, &inputs, true, out)
+                        }
+                    };
+                    // warm-up: buffer allocation, pipeline first use, model data upload
+                    if let Err(e) = run(ctx, &mut out) {
+                        println!("{}: {e}", ctx.adapter.label());
+                        continue;
+                    }
+                    let uploads0 = ctx.model_uploads();
+                    let mut tt = GpuTimes::default();
+                    let reps = (2_000 / n).clamp(1, 20);
+                    let t = Instant::now();
+                    for _ in 0..reps {
+                        tt.add(&run(ctx, &mut out).unwrap());
+                    }
+                    let dt = t.elapsed().as_secs_f64() / reps as f64;
+                    let r = reps as f64;
+                    let ups = ctx.model_uploads().uploads - uploads0.uploads;
+                    let err = if residual {
+                        worst_residual(&cpu, &out)
+                    } else {
+                        worst(
+                            &elems,
+                            &cpu,
+                            &out,
+                            match ctx.precision {
+                                Precision::F32 => f32::EPSILON as f64 / 2.0,
+                                Precision::F64 => f64::EPSILON / 2.0,
+                            },
+                        )
+                    };
+                    println!(
+                        "{nv:>9} {n:>8} | {:<44} {kind:<8} {:>12.0} {:>7.2}ms {:>7.3}ms {:>7.2}ms {:>7.2}ms {:>5}/{:<5} {:>9.1e}{}",
+                        format!("{} {}", ctx.adapter.label(), ctx.precision.as_str()),
+                        n as f64 / dt,
+                        1e3 * tt.upload_s / r,
+                        1e3 * tt.check_s / r,
+                        1e3 * tt.kernel_s / r,
+                        1e3 * tt.download_s / r,
+                        tt.bytes_up / (reps * n) as u64,
+                        tt.bytes_down / (reps * n) as u64,
+                        err,
+                        if ups > 0 {
+                            format!("  ({ups} model uploads in {reps} reps)")
+                        } else {
+                            String::new()
+                        }
+                    );
+                }
             }
         }
     }
+}
+
+/// Worst relative error of f, finert and mv against the CPU's residual evaluation,
+/// normwise over the batch (max difference / max |cpu| of each array): elements at rest
+/// have f and finert zero up to round-off, so per-element ratios would mean nothing.
+fn worst_residual(cpu: &[ElemOut], g: &[ElemOut]) -> f64 {
+    let mut w = 0.0f64;
+    for pick in [
+        |o: &ElemOut| o.f,
+        |o: &ElemOut| o.finert,
+        |o: &ElemOut| o.mv,
+    ] {
+        let (mut d, mut s) = (0.0f64, 0.0f64);
+        for (c, o) in cpu.iter().zip(g) {
+            for (x, y) in pick(c).iter().zip(pick(o).iter()) {
+                s = s.max(x.abs());
+                d = d.max((x - y).abs());
+            }
+        }
+        if s > 0.0 {
+            w = w.max(d / s);
+        }
+    }
+    w
 }

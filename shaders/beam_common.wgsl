@@ -26,7 +26,8 @@ struct ElemIn {
 
 struct Params {
     n_elem: u32,
-    pad0: u32,
+    // beam_residual: nonzero when the inertial forces are asked for
+    inertia: u32,
     pad1: u32,
     pad2: u32,
 }

@@ -15,11 +15,6 @@ struct ForceOut {
     pad: array<real, 3>,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> elems: array<ElemData>;
-@group(0) @binding(2) var<storage, read> inputs: array<ElemIn>;
-@group(0) @binding(3) var<storage, read_write> force_out: array<ForceOut>;
-
 // beam::stretch: chord change plus the length the bending shape adds
 fn stretch_d(l0: real, k: KinD) -> D {
     let fy1 = k.phi[1];
@@ -71,6 +66,16 @@ fn energy_value(p: array<real, 7>, l0: real, k: KinD) -> real {
         + (2.0 * p[1] / l0) * by;
 }
 
+// ---- kernel entry: everything below is this kernel's own (bindings and main); the
+// residual kernel (beam_residual.wgsl) includes only the functions above.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> elems: array<ElemData>;
+@group(0) @binding(2) var<storage, read> inputs: array<ElemIn>;
+@group(0) @binding(3) var<storage, read_write> force_out: array<ForceOut>;
+// table slot of each element of the batch (the model's data stays on the device)
+@group(0) @binding(4) var<storage, read> index: array<u32>;
+
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ie = gid.x / 12u;
@@ -78,7 +83,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if ie >= params.n_elem {
         return;
     }
-    let ed = elems[ie];
+    let ed = elems[index[ie]];
     let inp = inputs[ie];
     let f0 = m3_load(ed.frame0);
     let t1 = m3_mul(m3_load(inp.r1), f0);

@@ -15,11 +15,6 @@ struct InertiaOut {
     c: array<real, 144>, // row-major
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> elems: array<ElemData>;
-@group(0) @binding(2) var<storage, read> inputs: array<ElemIn>;
-@group(0) @binding(3) var<storage, read_write> inertia_out: array<InertiaOut>;
-
 // field gradients g[j][gp][field], fields (a, b, c)
 var<private> gr: array<array<array<vec3<real>, 3>, 4>, 12>;
 // second derivatives H[gp][field] of one hyper-dual pass
@@ -167,13 +162,22 @@ fn project(j: u32, wv: array<real, 3>, l0: real, scale: real) -> real {
     return scale * acc * l0;
 }
 
+// ---- kernel entry: everything below is this kernel's own (bindings and main); the
+// residual kernel (beam_residual.wgsl) includes only the functions above.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> elems: array<ElemData>;
+@group(0) @binding(2) var<storage, read> inputs: array<ElemIn>;
+@group(0) @binding(3) var<storage, read_write> inertia_out: array<InertiaOut>;
+@group(0) @binding(4) var<storage, read> index: array<u32>;
+
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ie = gid.x;
     if ie >= params.n_elem {
         return;
     }
-    let ed = elems[ie];
+    let ed = elems[index[ie]];
     let inp = inputs[ie];
     let f0 = m3_load(ed.frame0);
     let t1 = m3_mul(m3_load(inp.r1), f0);

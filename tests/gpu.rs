@@ -326,6 +326,215 @@ fn check_batch(
     err
 }
 
+const RESIDUAL_FIELDS: [&str; 5] = ["f", "energy", "S", "finert", "mv"];
+
+/// The residual kernel (beam_residual.wgsl) against `CpuEval::one_residual`, normwise per
+/// array as in [`errors`]: f and the energy with the same floors; S with the floor
+/// max|M|·Ω²·L0; finert = M·acc + S and mv = M·v12 with the floors max|M|·max|acc| (plus
+/// S's) and max|M|·max|v12|, the size of the products they sum (M from the CPU's full
+/// evaluation). Tolerances are the full kernels' (`F64_TOL`, `F32_TOL`): the residual
+/// kernel runs the same functions (value parts of the dual-number force, the inertia
+/// kernel's gradients and hyper-dual pass), and forms M·x as ∫μ gᵀ(g·x) instead of
+/// summing M's entries, a different order of as many roundings.
+fn check_residual(
+    test: &str,
+    ctx: &mut GpuContext,
+    elems: &[ElemData],
+    inputs: &[ElemIn],
+) -> [f64; 5] {
+    let n = elems.len();
+    let mut full = vec![ElemOut::default(); n];
+    CpuEval.evaluate(elems, inputs, true, &mut full).unwrap();
+    let mut cpu = vec![ElemOut::default(); n];
+    CpuEval
+        .evaluate_residual(elems, inputs, true, &mut cpu)
+        .unwrap();
+    let mut out = vec![ElemOut::default(); n];
+    for o in out.iter_mut() {
+        o.k[1][2] = f64::NAN;
+        o.m[0][0] = f64::NAN;
+        o.c[3][4] = f64::NAN;
+    }
+    let t = ctx
+        .evaluate_residual(elems, inputs, true, &mut out)
+        .unwrap_or_else(|e| panic!("{test}: {e}"));
+    let (eps, tol) = match ctx.precision {
+        Precision::F64 => (f64::EPSILON / 2.0, F64_TOL),
+        Precision::F32 => (f32::EPSILON as f64 / 2.0, F32_TOL[0]),
+    };
+    let frame = if ctx.corotate { CHANGE_OF_FRAME } else { 0.0 };
+    let maxabs = |a: &[f64]| a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    };
+    let rel = |d: f64, s: f64| if s == 0.0 { d } else { d / s };
+    let mut w = [0.0f64; 5];
+    for (((e, i), (c, f)), g) in elems
+        .iter()
+        .zip(inputs)
+        .zip(cpu.iter().zip(&full))
+        .zip(&out)
+    {
+        let kmax = maxabs(f.k.as_flattened());
+        let mmax = maxabs(f.m.as_flattened());
+        let fmax = maxabs(&c.f);
+        let floor = kmax * e.l0 * eps;
+        let fscale = fmax.max(floor).max(kmax * e.l0.max(1.0) * frame / tol);
+        let escale = c
+            .energy
+            .abs()
+            .max(floor * e.l0)
+            .max(fmax * e.l0 * frame / tol);
+        let v = &i.v12;
+        let omega = norm([v[3], v[4], v[5]])
+            .max(norm([v[9], v[10], v[11]]))
+            .max(norm(sub([v[6], v[7], v[8]], [v[0], v[1], v[2]])) / e.l0);
+        let sfloor = mmax * omega * omega * e.l0;
+        let err = [
+            rel(diff(&c.f, &g.f), fscale),
+            rel((c.energy - g.energy).abs(), escale),
+            rel(diff(&c.s, &g.s), maxabs(&c.s).max(sfloor)),
+            rel(
+                diff(&c.finert, &g.finert),
+                maxabs(&c.finert).max(mmax * maxabs(&i.acc) + sfloor),
+            ),
+            rel(diff(&c.mv, &g.mv), maxabs(&c.mv).max(mmax * maxabs(v))),
+        ];
+        for k in 0..5 {
+            w[k] = w[k].max(err[k]);
+        }
+        // a residual evaluation writes the matrices as zero, like the CPU's
+        assert!(
+            g.k.as_flattened().iter().all(|x| *x == 0.0)
+                && g.m.as_flattened().iter().all(|x| *x == 0.0)
+                && g.c.as_flattened().iter().all(|x| *x == 0.0),
+            "{test}: residual evaluation left K, M or C nonzero"
+        );
+    }
+    let _ =
+        writeln!(
+        std::io::stderr(),
+        "{test}: residual {} {} corotate={} n={n}: {}; downloaded {} B (a full evaluation: {} B)",
+        ctx.adapter.label(),
+        ctx.precision.as_str(),
+        ctx.corotate,
+        RESIDUAL_FIELDS
+            .iter()
+            .zip(w)
+            .map(|(f, e)| format!("{f} {e:.2e}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        t.bytes_down,
+        n * 460 * if ctx.precision == Precision::F64 { 8 } else { 4 }
+    );
+    for k in 0..5 {
+        assert!(
+            w[k] <= tol,
+            "{test}: {} {}: residual {} error {:.3e} above {:.1e}",
+            ctx.adapter.label(),
+            ctx.precision.as_str(),
+            RESIDUAL_FIELDS[k],
+            w[k],
+            tol
+        );
+    }
+    // only 52 words per element come back, not the 460 of f, K, M, S, C
+    let word = if ctx.precision == Precision::F64 {
+        8
+    } else {
+        4
+    };
+    assert_eq!(t.bytes_down, (n * 52 * word) as u64);
+    // without inertia: f and energy as before, the inertial forces zero
+    let mut out2 = vec![ElemOut::default(); n];
+    for o in out2.iter_mut() {
+        o.finert[2] = f64::NAN;
+        o.s[3] = f64::NAN;
+        o.mv[5] = f64::NAN;
+    }
+    ctx.evaluate_residual(elems, inputs, false, &mut out2)
+        .unwrap();
+    for (a, b) in out.iter().zip(&out2) {
+        assert_eq!(a.f, b.f, "{test}: f depends on the inertia flag");
+        assert!(b.finert[2] == 0.0 && b.s[3] == 0.0 && b.mv[5] == 0.0);
+    }
+    w
+}
+
+#[test]
+fn residual_kernel_matches_cpu_residual_on_4096_random_states_in_f64_and_f32() {
+    let test = "residual_kernel_matches_cpu_residual_on_4096_random_states_in_f64_and_f32";
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let (elems, inputs): (Vec<_>, Vec<_>) = (0..4096)
+        .map(|i| random_element(&mut rng, [1e-3, 1e-4, 1e-5][i % 3]))
+        .unzip();
+    for ctx in shared_contexts(test) {
+        check_residual(test, &mut lock(ctx), &elems, &inputs);
+    }
+}
+
+/// The model data (element records) goes to the device once, not with every dispatch:
+/// repeated evaluations of the same element data (same content; here also a fresh copy
+/// in another allocation) upload only the per-iteration inputs; changed data is uploaded
+/// once more. Counts, not times.
+#[test]
+fn model_data_is_uploaded_once_not_per_dispatch() {
+    let test = "model_data_is_uploaded_once_not_per_dispatch";
+    let mut rng = Rng(7);
+    let (elems, inputs): (Vec<_>, Vec<_>) =
+        (0..300).map(|_| random_element(&mut rng, 1e-4)).unzip();
+    let n = elems.len();
+    for ctx in shared_contexts(test) {
+        let mut ctx = lock(ctx);
+        let word = if ctx.precision == Precision::F64 {
+            8
+        } else {
+            4
+        };
+        let before = ctx.model_uploads();
+        let mut out = vec![ElemOut::default(); n];
+        let mut bytes = Vec::new();
+        for it in 0..6 {
+            let copy = elems.clone();
+            let t = if it % 2 == 0 {
+                ctx.evaluate(&copy, &inputs, true, &mut out)
+            } else {
+                ctx.evaluate_residual(&copy, &inputs, true, &mut out)
+            }
+            .unwrap_or_else(|e| panic!("{test}: {e}"));
+            bytes.push(t.bytes_up);
+        }
+        let after = ctx.model_uploads();
+        assert_eq!(after.uploads - before.uploads, 1, "{test}: model uploads");
+        assert_eq!(after.elements - before.elements, n as u64);
+        // per dispatch: parameters (16 B) and the 36-word inputs, plus the 12-word
+        // accelerations for the residual kernel; the slot indices only when they changed
+        let inp = (16 + n * 36 * word) as u64;
+        let acc = (n * 12 * word) as u64;
+        for (it, b) in bytes.iter().enumerate().skip(1) {
+            let want = if it % 2 == 0 { inp } else { inp + acc };
+            assert_eq!(*b, want, "{test}: bytes uploaded by dispatch {it}");
+        }
+        let _ = writeln!(
+            std::io::stderr(),
+            "{test}: {} {}: {} model upload(s) of {} B for 6 dispatches; per dispatch {:?} B",
+            ctx.adapter.label(),
+            ctx.precision.as_str(),
+            after.uploads - before.uploads,
+            after.bytes - before.bytes,
+            bytes
+        );
+        // different content: uploaded (once) again
+        let mut changed = elems.clone();
+        changed[17].props.ea *= 2.0;
+        ctx.evaluate(&changed, &inputs, false, &mut out).unwrap();
+        ctx.evaluate(&changed, &inputs, false, &mut out).unwrap();
+        assert_eq!(ctx.model_uploads().uploads - before.uploads, 2);
+    }
+}
+
 #[test]
 fn kernels_match_cpu_on_4096_random_large_motion_small_strain_states() {
     let test = "kernels_match_cpu_on_4096_random_large_motion_small_strain_states";
@@ -417,6 +626,7 @@ fn kernels_match_cpu_on_the_states_of_real_simulations() {
     let (elems, inputs) = rec.seen.lock().unwrap().clone();
     for ctx in ctxs {
         check_batch(test, &mut lock(ctx), &elems, &inputs);
+        check_residual(test, &mut lock(ctx), &elems, &inputs);
     }
 }
 
@@ -488,13 +698,23 @@ fn rotating_beam_sweep_on_the_gpu_gives_the_cpu_frequencies_and_sensors() {
         let st = batcher.stats();
         let _ = writeln!(
             std::io::stderr(),
-            "{test}: {label}: {:.1} s, {} rounds, {:.2} requests per round; GPU upload {:.1} s, kernels {:.1} s, download {:.1} s",
+            "{test}: {label}: {:.1} s, {} rounds, {:.2} requests per round ({} residual-only); model data {} upload(s) of {} B; GPU upload {:.1} s, kernels {:.1} s, download {:.1} s",
             t0.elapsed().as_secs_f64(),
             st.rounds,
             st.requests as f64 / st.rounds.max(1) as f64,
+            st.residual_requests,
+            st.model.uploads,
+            st.model.bytes,
             st.gpu.upload_s,
             st.gpu.kernel_s,
             st.gpu.download_s
+        );
+        // each variant's client sent its element data once (one client per variant)
+        assert_eq!(
+            st.model.uploads as usize,
+            cpu.len(),
+            "{label}: model data uploads {:?}",
+            st.model
         );
         for (c, g) in cpu.iter().zip(&out) {
             assert_eq!(

@@ -13,8 +13,9 @@ use crate::element::{ElemData, ElemIn, ElemOut, NDOF};
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct Params {
     pub n_elem: u32,
+    /// beam_residual: nonzero when the inertial forces are asked for
+    pub inertia: u32,
     // separate words: a uniform-buffer array would need a 16-byte element stride
-    pub pad0: u32,
     pub pad1: u32,
     pub pad2: u32,
 }
@@ -91,7 +92,26 @@ macro_rules! records {
                 pub s: [$t; 12],
                 pub c: [$t; 144],
             }
+            /// WGSL `ResidualOut` (beam_residual.wgsl)
+            #[repr(C)]
+            #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+            pub struct ResidualOut {
+                pub f: [$t; 12],
+                pub s: [$t; 12],
+                pub finert: [$t; 12],
+                pub mv: [$t; 12],
+                pub energy: $t,
+                pub pad: [$t; 3],
+            }
+            /// WGSL `Acc` (beam_residual.wgsl)
+            #[repr(C)]
+            #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+            pub struct Acc {
+                pub a: [$t; 12],
+            }
             const W: usize = std::mem::size_of::<$t>();
+            const _: () = assert!(std::mem::size_of::<ResidualOut>() == 52 * W);
+            const _: () = assert!(std::mem::size_of::<Acc>() == 12 * W);
             const _: () = assert!(std::mem::size_of::<ElemData>() == 20 * W);
             const _: () = assert!(std::mem::size_of::<ElemIn>() == 36 * W);
             const _: () = assert!(std::mem::size_of::<ForceOut>() == 160 * W);
@@ -109,8 +129,14 @@ pub trait Records: Sized {
     type In: Pod;
     type Force: Pod;
     type Inertia: Pod;
+    type Residual: Pod;
+    type Acc: Pod;
     fn data(e: &ElemData) -> Self::Data;
     fn input(i: &ElemIn) -> Self::In;
+    fn acc(i: &ElemIn) -> Self::Acc;
+    /// write f, energy, s, finert, mv (zeros when the kernel ran without inertia) and
+    /// zero K, M, C, as `CpuEval::one_residual`
+    fn residual_output(r: &Self::Residual, o: &mut ElemOut);
     /// write f, K, energy (and M, S, C when `inertia` is Some, zeros otherwise)
     fn output(f: &Self::Force, inertia: Option<&Self::Inertia>, o: &mut ElemOut);
 }
@@ -131,6 +157,25 @@ macro_rules! impl_records {
             type In = $m::ElemIn;
             type Force = $m::ForceOut;
             type Inertia = $m::InertiaOut;
+            type Residual = $m::ResidualOut;
+            type Acc = $m::Acc;
+            fn acc(i: &ElemIn) -> $m::Acc {
+                $m::Acc {
+                    a: i.acc.map(|x| <$t as GpuReal>::of(x)),
+                }
+            }
+            fn residual_output(r: &$m::ResidualOut, o: &mut ElemOut) {
+                for j in 0..NDOF {
+                    o.f[j] = r.f[j].to();
+                    o.s[j] = r.s[j].to();
+                    o.finert[j] = r.finert[j].to();
+                    o.mv[j] = r.mv[j].to();
+                }
+                o.energy = r.energy.to();
+                o.k = [[0.0; NDOF]; NDOF];
+                o.m = [[0.0; NDOF]; NDOF];
+                o.c = [[0.0; NDOF]; NDOF];
+            }
             fn data(e: &ElemData) -> $m::ElemData {
                 let p = &e.props;
                 let c = |x: f64| <$t as GpuReal>::of(x);
@@ -182,7 +227,13 @@ macro_rules! impl_records {
 impl_records!(F32, f32s, f32);
 impl_records!(F64, f64s, f64);
 
-/// WGSL sources of the kernels with the scalar alias set to `real` ("f32" or "f64").
+/// Marker in beam_force.wgsl and beam_inertia.wgsl: above it the functions the residual
+/// kernel shares, below it the kernel's own bindings and entry point.
+const ENTRY_MARK: &str = "// ---- kernel entry:";
+
+/// WGSL sources of the kernels with the scalar alias set to `real` ("f32" or "f64"):
+/// beam_common, then the kernel file; `beam_residual` gets the functions of beam_force and
+/// beam_inertia (the parts above their entry marker) in between.
 /// `LATDYN_SHADER_DIR=shaders` reads the files at run time instead of the copies built
 /// into the binary (shader development without recompiling).
 pub fn shader_source(kernel: &str, real: &str) -> String {
@@ -190,6 +241,7 @@ pub fn shader_source(kernel: &str, real: &str) -> String {
         match name {
             "beam_common" => include_str!("../../shaders/beam_common.wgsl"),
             "beam_force" => include_str!("../../shaders/beam_force.wgsl"),
+            "beam_residual" => include_str!("../../shaders/beam_residual.wgsl"),
             _ => include_str!("../../shaders/beam_inertia.wgsl"),
         }
     };
@@ -199,11 +251,27 @@ pub fn shader_source(kernel: &str, real: &str) -> String {
             .and_then(|d| std::fs::read_to_string(format!("{d}/{name}.wgsl")).ok())
             .unwrap_or_else(|| built(name).to_string())
     };
+    let functions = |name: &str| -> String {
+        let s = read(name);
+        match s.find(ENTRY_MARK) {
+            Some(i) => s[..i].to_string(),
+            None => s,
+        }
+    };
     let common = read("beam_common").replace(
         "alias real = f32; // LATDYN_REAL",
         &format!("alias real = {real};"),
     );
-    format!("{common}\n{}", read(kernel))
+    if kernel == "beam_residual" {
+        format!(
+            "{common}\n{}\n{}\n{}",
+            functions("beam_force"),
+            functions("beam_inertia"),
+            read(kernel)
+        )
+    } else {
+        format!("{common}\n{}", read(kernel))
+    }
 }
 
 #[cfg(test)]
@@ -246,18 +314,10 @@ mod tests {
 
     #[test]
     fn wgsl_struct_layouts_equal_rust_records_in_both_precisions() {
-        for (real, force, inertia) in [
-            (
-                "f32",
-                shader_source("beam_force", "f32"),
-                shader_source("beam_inertia", "f32"),
-            ),
-            (
-                "f64",
-                shader_source("beam_force", "f64"),
-                shader_source("beam_inertia", "f64"),
-            ),
-        ] {
+        for real in ["f32", "f64"] {
+            let force = shader_source("beam_force", real);
+            let inertia = shader_source("beam_inertia", real);
+            let residual = shader_source("beam_residual", real);
             if real == "f32" {
                 check!(
                     &force,
@@ -268,7 +328,14 @@ mod tests {
                 check!(&force, "ElemIn", f32s::ElemIn, [u1, r1, u2, r2, v12]);
                 check!(&force, "ForceOut", f32s::ForceOut, [f, k, energy, pad]);
                 check!(&inertia, "InertiaOut", f32s::InertiaOut, [m, s, c]);
-                check!(&force, "Params", Params, [n_elem, pad0, pad1, pad2]);
+                check!(&force, "Params", Params, [n_elem, inertia, pad1, pad2]);
+                check!(
+                    &residual,
+                    "ResidualOut",
+                    f32s::ResidualOut,
+                    [f, s, finert, mv, energy, pad]
+                );
+                check!(&residual, "Acc", f32s::Acc, [a]);
             } else {
                 check!(
                     &force,
@@ -279,6 +346,13 @@ mod tests {
                 check!(&force, "ElemIn", f64s::ElemIn, [u1, r1, u2, r2, v12]);
                 check!(&force, "ForceOut", f64s::ForceOut, [f, k, energy, pad]);
                 check!(&inertia, "InertiaOut", f64s::InertiaOut, [m, s, c]);
+                check!(
+                    &residual,
+                    "ResidualOut",
+                    f64s::ResidualOut,
+                    [f, s, finert, mv, energy, pad]
+                );
+                check!(&residual, "Acc", f64s::Acc, [a]);
             }
         }
     }

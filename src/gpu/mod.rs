@@ -13,6 +13,7 @@
 
 pub mod batch;
 pub mod layout;
+pub mod policy;
 
 use std::sync::Mutex;
 use std::time::Instant;
@@ -35,18 +36,18 @@ fn corotate(e: &ElemData, i: &ElemIn) -> (ElemData, ElemIn, Mat3) {
     let t1 = mat_mul(&i.state.r1, &e.frame0);
     let t2 = mat_mul(&i.state.r2, &e.frame0);
     let q = transpose(&t1);
-    let e2 = ElemData {
-        props: e.props,
-        frame0: I3,
-        chord0: [e.l0, 0.0, 0.0],
-        l0: e.l0,
-    };
+    let e2 = corotated_data(e);
     let chord = mat_vec(&q, add(e.chord0, sub(i.state.u2, i.state.u1)));
-    let mut v12 = [0.0; NDOF];
-    for b in 0..4 {
-        let v = mat_vec(&q, [i.v12[3 * b], i.v12[3 * b + 1], i.v12[3 * b + 2]]);
-        v12[3 * b..3 * b + 3].copy_from_slice(&v);
-    }
+    let rotate = |x: &[f64; NDOF]| {
+        let mut y = [0.0; NDOF];
+        for b in 0..4 {
+            let v = mat_vec(&q, [x[3 * b], x[3 * b + 1], x[3 * b + 2]]);
+            y[3 * b..3 * b + 3].copy_from_slice(&v);
+        }
+        y
+    };
+    let v12 = rotate(&i.v12);
+    let acc = rotate(&i.acc);
     let i2 = ElemIn {
         state: ElemState {
             u1: [0.0; 3],
@@ -55,14 +56,15 @@ fn corotate(e: &ElemData, i: &ElemIn) -> (ElemData, ElemIn, Mat3) {
             r2: mat_mul(&q, &t2),
         },
         v12,
-        // the kernels do not use it: M·acc is formed on the host (`products_from_m`)
-        acc: [0.0; NDOF],
+        // used by the residual kernel only (the full path forms M·acc on the host)
+        acc,
     };
     (e2, i2, q)
 }
 
-/// Back from [`corotate`]'s frame: vectors Qᵀv per 3-block, matrices QᵀA_ab Q per block.
-fn corotate_back(q: &Mat3, o: &mut ElemOut) {
+/// Back from [`corotate`]'s frame: vectors Qᵀv per 3-block, matrices QᵀA_ab Q per block
+/// (after a residual evaluation: the vectors f, s, finert, mv; the matrices are zero).
+fn corotate_back(q: &Mat3, o: &mut ElemOut, residual: bool) {
     let qt = transpose(q);
     let vec_back = |v: &mut [f64; NDOF]| {
         for b in 0..4 {
@@ -90,6 +92,11 @@ fn corotate_back(q: &Mat3, o: &mut ElemOut) {
     };
     vec_back(&mut o.f);
     vec_back(&mut o.s);
+    if residual {
+        vec_back(&mut o.finert);
+        vec_back(&mut o.mv);
+        return;
+    }
     mat_back(&mut o.k);
     mat_back(&mut o.m);
     mat_back(&mut o.c);
@@ -270,17 +277,25 @@ pub fn select(
     Ok(all.remove(0))
 }
 
-/// Wall time split of GPU batches [s].
+/// Wall time split of GPU batches [s], and what crossed the host link.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GpuTimes {
-    /// conversion to GPU records and buffer writes
+    /// conversion of the per-iteration inputs to GPU records and buffer writes (and the
+    /// content check of [`GpuContext::evaluate`]'s model-data cache, also in `check_s`)
     pub upload_s: f64,
     /// dispatch of the kernels until the GPU finished
     pub kernel_s: f64,
     /// copy to the staging buffer, map, conversion back to f64
     pub download_s: f64,
+    /// of `upload_s`: comparing the caller's element data with the resident copy
+    pub check_s: f64,
     pub batches: u64,
     pub elements: u64,
+    /// bytes written to the device per dispatch (inputs, accelerations, changed slot
+    /// indices, parameters), summed; model data is counted in [`ModelUploads`]
+    pub bytes_up: u64,
+    /// bytes read back, summed
+    pub bytes_down: u64,
 }
 
 impl GpuTimes {
@@ -288,24 +303,126 @@ impl GpuTimes {
         self.upload_s += o.upload_s;
         self.kernel_s += o.kernel_s;
         self.download_s += o.download_s;
+        self.check_s += o.check_s;
         self.batches += o.batches;
         self.elements += o.elements;
+        self.bytes_up += o.bytes_up;
+        self.bytes_down += o.bytes_down;
+    }
+}
+
+/// Model data written to a context's device table since it was opened.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ModelUploads {
+    /// write operations (one per registration, plus one per live segment when the table
+    /// is rewritten in the other form after `corotate` was switched)
+    pub uploads: u64,
+    /// element records written
+    pub elements: u64,
+    pub bytes: u64,
+}
+
+/// A run of table slots holding one caller's element data on the device (from
+/// [`GpuContext::register`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Segment(usize);
+
+#[derive(Clone, Copy, Debug)]
+struct Seg {
+    offset: usize,
+    cap: usize,
+    n: usize,
+    live: bool,
+}
+
+/// The model's constant per-element data, resident on the device: one table of `Data`
+/// records that the kernels index with a per-element slot (`index` buffer), filled once
+/// per registered segment; a host mirror in f64 for the co-rotated upload (which needs
+/// each element's frame0 and chord0) and for the content check.
+struct Table {
+    buf: Option<wgpu::Buffer>,
+    /// slots the buffer holds
+    capacity: usize,
+    mirror: Vec<ElemData>,
+    segs: Vec<Seg>,
+    /// the form the records on the device were written in (`corotate`)
+    corotated: bool,
+    /// bumped when the buffer is replaced (bind groups then rebuilt)
+    generation: u64,
+    counts: ModelUploads,
+}
+
+/// Segments [`GpuContext::evaluate`] keeps for callers that pass their element data each
+/// time: the most recently used first. Four covers a caller alternating between a few
+/// batches (tests, benches) without letting a stream of different batches grow the table.
+const CACHED_SEGMENTS: usize = 4;
+
+/// Bitwise equality of element data (a NaN equals itself; -0 differs from +0): the cache
+/// may reuse the device copy only if the conversion would write the same bytes.
+pub(crate) fn same_data(a: &[ElemData], b: &[ElemData]) -> bool {
+    fn words(e: &ElemData) -> [u64; 20] {
+        let p = &e.props;
+        let f = &e.frame0;
+        [
+            p.ea,
+            p.eiy,
+            p.eiz,
+            p.gj,
+            p.rho_a,
+            p.rho_iy,
+            p.rho_iz,
+            f[0][0],
+            f[0][1],
+            f[0][2],
+            f[1][0],
+            f[1][1],
+            f[1][2],
+            f[2][0],
+            f[2][1],
+            f[2][2],
+            e.chord0[0],
+            e.chord0[1],
+            e.chord0[2],
+            e.l0,
+        ]
+        .map(f64::to_bits)
+    }
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| words(x) == words(y))
+}
+
+/// The element data as the kernels see it in the co-rotated upload ([`corotate`]):
+/// props and L0 only, so it is as constant as the element.
+fn corotated_data(e: &ElemData) -> ElemData {
+    ElemData {
+        props: e.props,
+        frame0: I3,
+        chord0: [e.l0, 0.0, 0.0],
+        l0: e.l0,
     }
 }
 
 struct Buffers {
     capacity: usize,
-    elems: wgpu::Buffer,
     inputs: wgpu::Buffer,
+    index: wgpu::Buffer,
+    accs: wgpu::Buffer,
     force: wgpu::Buffer,
     inertia: wgpu::Buffer,
+    residual: wgpu::Buffer,
     staging_force: wgpu::Buffer,
     staging_inertia: wgpu::Buffer,
-    force_group: wgpu::BindGroup,
-    inertia_group: wgpu::BindGroup,
+    staging_residual: wgpu::Buffer,
 }
 
-/// Device, queue, the two pipelines and grow-only buffers on one adapter.
+struct Groups {
+    table_generation: u64,
+    force: wgpu::BindGroup,
+    inertia: wgpu::BindGroup,
+    residual: wgpu::BindGroup,
+}
+
+/// Device, queue, the pipelines, the resident element table and grow-only buffers on
+/// one adapter.
 pub struct GpuContext {
     pub adapter: AdapterSummary,
     pub precision: Precision,
@@ -313,21 +430,40 @@ pub struct GpuContext {
     queue: wgpu::Queue,
     force_pipe: wgpu::ComputePipeline,
     inertia_pipe: wgpu::ComputePipeline,
+    residual_pipe: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     bufs: Option<Buffers>,
+    groups: Option<Groups>,
+    table: Table,
+    /// LRU segments of [`GpuContext::evaluate`]'s content-checked cache
+    cache: Vec<Segment>,
+    /// slot indices of the last dispatch as on the device (rewritten only when changed)
+    last_index: Vec<u32>,
+    /// slot scratch of [`GpuContext::evaluate`]
+    index: Vec<u32>,
     /// host-side record scratch, reused across batches
-    up_data: Vec<u8>,
     up_in: Vec<u8>,
+    up_acc: Vec<u8>,
     /// per-element Q of [`corotate`] in the current batch
     rot: Vec<Mat3>,
     max_groups: u32,
+    max_binding: u64,
     /// upload each element in node 1's frame ([`corotate`]); default: on for f32 (where
     /// it decides the precision), off for f64 (the kernels then see exactly the CPU
-    /// functions' inputs)
+    /// functions' inputs). Switching it rewrites the resident table on the next dispatch.
     pub corotate: bool,
 }
 
 const WORKGROUP: u32 = 64;
+
+/// What one dispatch computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// f, K, energy (beam_force) and M, S, C (beam_inertia) when inertia is asked
+    Full,
+    /// f, energy and the inertial forces only (beam_residual)
+    Residual,
+}
 
 impl GpuContext {
     /// Open `adapter` and compile the kernels in `precision`.
@@ -381,12 +517,14 @@ impl GpuContext {
         };
         let force_pipe = make("beam_force")?;
         let inertia_pipe = make("beam_inertia")?;
+        let residual_pipe = make("beam_residual")?;
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<Params>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let corotate = precision == Precision::F32;
         Ok(GpuContext {
             adapter: summary,
             precision,
@@ -394,13 +532,28 @@ impl GpuContext {
             queue,
             force_pipe,
             inertia_pipe,
+            residual_pipe,
             params,
             bufs: None,
-            up_data: Vec::new(),
+            groups: None,
+            table: Table {
+                buf: None,
+                capacity: 0,
+                mirror: Vec::new(),
+                segs: Vec::new(),
+                corotated: corotate,
+                generation: 0,
+                counts: ModelUploads::default(),
+            },
+            cache: Vec::new(),
+            last_index: Vec::new(),
+            index: Vec::new(),
             up_in: Vec::new(),
+            up_acc: Vec::new(),
             rot: Vec::new(),
             max_groups: limits.max_compute_workgroups_per_dimension,
-            corotate: precision == Precision::F32,
+            max_binding: limits.max_storage_buffer_binding_size,
+            corotate,
         })
     }
 
@@ -415,7 +568,161 @@ impl GpuContext {
         (self.max_groups as usize * WORKGROUP as usize) / 12
     }
 
-    fn ensure(&mut self, n: usize, sizes: [usize; 4]) {
+    /// Model data written to the device so far.
+    pub fn model_uploads(&self) -> ModelUploads {
+        self.table.counts
+    }
+
+    fn data_size(&self) -> usize {
+        match self.precision {
+            Precision::F32 => std::mem::size_of::<layout::f32s::ElemData>(),
+            Precision::F64 => std::mem::size_of::<layout::f64s::ElemData>(),
+        }
+    }
+
+    /// Put `elems` on the device once: the returned segment stays resident until
+    /// [`release`](Self::release)d, and [`evaluate_slots`](Self::evaluate_slots) refers
+    /// to its elements by slot ([`slots`](Self::slots)).
+    pub fn register(&mut self, elems: &[ElemData]) -> Result<Segment, GpuError> {
+        let n = elems.len();
+        let t = &mut self.table;
+        // first fit among released segments (the clients of one campaign share a model,
+        // so a released segment is the size of the next registration)
+        let reuse = t.segs.iter().position(|s| !s.live && s.cap >= n);
+        let id = match reuse {
+            Some(k) => {
+                let seg = &mut t.segs[k];
+                seg.live = true;
+                seg.n = n;
+                t.mirror[seg.offset..seg.offset + n].copy_from_slice(elems);
+                k
+            }
+            None => {
+                t.segs.push(Seg {
+                    offset: t.mirror.len(),
+                    cap: n,
+                    n,
+                    live: true,
+                });
+                t.mirror.extend_from_slice(elems);
+                t.segs.len() - 1
+            }
+        };
+        let off = t.segs[id].offset;
+        if let Err(e) = self.grow_table(off + n) {
+            // not on the device: the slots must not be used
+            self.table.segs[id].live = false;
+            return Err(e);
+        }
+        self.write_segment(id);
+        Ok(Segment(id))
+    }
+
+    /// Give a segment's slots back (its device data is left and overwritten by a later
+    /// registration).
+    pub fn release(&mut self, s: Segment) {
+        if let Some(seg) = self.table.segs.get_mut(s.0) {
+            seg.live = false;
+        }
+        self.cache.retain(|c| *c != s);
+    }
+
+    /// The table slots of a segment's elements, in order.
+    pub fn slots(&self, s: Segment) -> std::ops::Range<u32> {
+        let seg = self.table.segs[s.0];
+        seg.offset as u32..(seg.offset + seg.n) as u32
+    }
+
+    /// Grow the device table to hold `slots` records, keeping its content (copied on the
+    /// device: growing uploads no model data).
+    fn grow_table(&mut self, slots: usize) -> Result<(), GpuError> {
+        if self.table.buf.is_some() && self.table.capacity >= slots {
+            return Ok(());
+        }
+        let cap = slots.next_power_of_two().max(64);
+        let size = (cap * self.data_size()) as u64;
+        if size > self.max_binding {
+            return Err(GpuError::TooLarge(
+                slots,
+                self.max_binding as usize / self.data_size(),
+            ));
+        }
+        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("elem_table"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        if let Some(old) = &self.table.buf {
+            let mut enc = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+            enc.copy_buffer_to_buffer(old, 0, &buf, 0, old.size());
+            self.queue.submit([enc.finish()]);
+        }
+        self.table.buf = Some(buf);
+        self.table.capacity = cap;
+        self.table.generation += 1;
+        Ok(())
+    }
+
+    /// Write one segment's records in the current form (`corotate`).
+    fn write_segment(&mut self, id: usize) {
+        match self.precision {
+            Precision::F32 => self.write_segment_as::<layout::F32>(id),
+            Precision::F64 => self.write_segment_as::<layout::F64>(id),
+        }
+    }
+
+    fn write_segment_as<P: Records>(&mut self, id: usize) {
+        let t = &mut self.table;
+        let seg = t.segs[id];
+        let mut bytes = Vec::with_capacity(seg.n * std::mem::size_of::<P::Data>());
+        for e in &t.mirror[seg.offset..seg.offset + seg.n] {
+            let rec = if t.corotated {
+                P::data(&corotated_data(e))
+            } else {
+                P::data(e)
+            };
+            bytes.extend_from_slice(bytemuck::bytes_of(&rec));
+        }
+        if let Some(buf) = &t.buf {
+            let at = (seg.offset * std::mem::size_of::<P::Data>()) as u64;
+            self.queue.write_buffer(buf, at, &bytes);
+        }
+        t.counts.uploads += 1;
+        t.counts.elements += seg.n as u64;
+        t.counts.bytes += bytes.len() as u64;
+    }
+
+    /// The resident segment holding exactly `elems` (content-checked), registering it
+    /// when none does.
+    fn resident(&mut self, elems: &[ElemData]) -> Result<Segment, GpuError> {
+        let found = self.cache.iter().position(|s| {
+            let seg = self.table.segs[s.0];
+            seg.live
+                && seg.n == elems.len()
+                && same_data(&self.table.mirror[seg.offset..seg.offset + seg.n], elems)
+        });
+        let s = match found {
+            Some(k) => self.cache.remove(k),
+            None => {
+                let s = self.register(elems)?;
+                if self.cache.len() >= CACHED_SEGMENTS {
+                    if let Some(old) = self.cache.pop() {
+                        self.release(old);
+                    }
+                }
+                s
+            }
+        };
+        self.cache.insert(0, s);
+        Ok(s)
+    }
+
+    fn ensure(&mut self, n: usize, sizes: [usize; 5]) {
         if self.bufs.as_ref().is_some_and(|b| b.capacity >= n) {
             return;
         }
@@ -430,52 +737,71 @@ impl GpuContext {
             })
         };
         use wgpu::BufferUsages as U;
-        let elems = storage("elems", sizes[0], U::STORAGE | U::COPY_DST);
-        let inputs = storage("inputs", sizes[1], U::STORAGE | U::COPY_DST);
-        let force = storage("force_out", sizes[2], U::STORAGE | U::COPY_SRC);
-        let inertia = storage("inertia_out", sizes[3], U::STORAGE | U::COPY_SRC);
-        let staging_force = storage("staging_force", sizes[2], U::MAP_READ | U::COPY_DST);
-        let staging_inertia = storage("staging_inertia", sizes[3], U::MAP_READ | U::COPY_DST);
-        let group = |pipe: &wgpu::ComputePipeline, out: &wgpu::Buffer| {
-            dev.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &pipe.get_bind_group_layout(0),
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.params.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: elems.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: inputs.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: out.as_entire_binding(),
-                    },
-                ],
-            })
-        };
-        let force_group = group(&self.force_pipe, &force);
-        let inertia_group = group(&self.inertia_pipe, &inertia);
+        let [s_in, s_force, s_inertia, s_res, s_acc] = sizes;
         self.bufs = Some(Buffers {
             capacity: cap,
-            elems,
-            inputs,
-            force,
-            inertia,
-            staging_force,
-            staging_inertia,
-            force_group,
-            inertia_group,
+            inputs: storage("inputs", s_in, U::STORAGE | U::COPY_DST),
+            index: storage("index", 4, U::STORAGE | U::COPY_DST),
+            accs: storage("accs", s_acc, U::STORAGE | U::COPY_DST),
+            force: storage("force_out", s_force, U::STORAGE | U::COPY_SRC),
+            inertia: storage("inertia_out", s_inertia, U::STORAGE | U::COPY_SRC),
+            residual: storage("residual_out", s_res, U::STORAGE | U::COPY_SRC),
+            staging_force: storage("staging_force", s_force, U::MAP_READ | U::COPY_DST),
+            staging_inertia: storage("staging_inertia", s_inertia, U::MAP_READ | U::COPY_DST),
+            staging_residual: storage("staging_residual", s_res, U::MAP_READ | U::COPY_DST),
+        });
+        // the new index buffer holds nothing yet
+        self.last_index.clear();
+        self.groups = None;
+    }
+
+    /// Bind groups over the current table and buffers (rebuilt when either was replaced).
+    fn ensure_groups(&mut self) {
+        let gen = self.table.generation;
+        if self
+            .groups
+            .as_ref()
+            .is_some_and(|g| g.table_generation == gen)
+        {
+            return;
+        }
+        let (Some(b), Some(table)) = (self.bufs.as_ref(), self.table.buf.as_ref()) else {
+            return;
+        };
+        fn entry(binding: u32, buf: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: buf.as_entire_binding(),
+            }
+        }
+        let group = |pipe: &wgpu::ComputePipeline, out: &wgpu::Buffer, acc: bool| {
+            let mut entries = vec![
+                entry(0, &self.params),
+                entry(1, table),
+                entry(2, &b.inputs),
+                entry(3, out),
+                entry(4, &b.index),
+            ];
+            if acc {
+                entries.push(entry(5, &b.accs));
+            }
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipe.get_bind_group_layout(0),
+                entries: &entries,
+            })
+        };
+        self.groups = Some(Groups {
+            table_generation: gen,
+            force: group(&self.force_pipe, &b.force, false),
+            inertia: group(&self.inertia_pipe, &b.inertia, false),
+            residual: group(&self.residual_pipe, &b.residual, true),
         });
     }
 
-    /// Evaluate one batch: `out[i]` from `elems[i]`, `inputs[i]`.
+    /// Evaluate one batch: `out[i]` from `elems[i]`, `inputs[i]`. The element data goes
+    /// to the device only when it differs (bitwise) from a resident copy: a caller that
+    /// passes the same model data every Newton iteration uploads it once.
     pub fn evaluate(
         &mut self,
         elems: &[ElemData],
@@ -483,161 +809,295 @@ impl GpuContext {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<GpuTimes, GpuError> {
-        match self.precision {
-            Precision::F32 => self.evaluate_as::<layout::F32>(elems, inputs, inertia, out),
-            Precision::F64 => self.evaluate_as::<layout::F64>(elems, inputs, inertia, out),
-        }
+        self.evaluate_kind(Kind::Full, elems, inputs, inertia, out)
     }
 
-    fn evaluate_as<P: Records>(
+    /// As [`evaluate`](Self::evaluate) for a residual-only iteration: f, energy and
+    /// (with `inertia`) s, finert, mv from the residual kernel; K, M, C zero.
+    pub fn evaluate_residual(
         &mut self,
         elems: &[ElemData],
         inputs: &[ElemIn],
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<GpuTimes, GpuError> {
-        let n = elems.len();
+        self.evaluate_kind(Kind::Residual, elems, inputs, inertia, out)
+    }
+
+    fn evaluate_kind(
+        &mut self,
+        kind: Kind,
+        elems: &[ElemData],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<GpuTimes, GpuError> {
+        if elems.is_empty() {
+            return Ok(GpuTimes::default());
+        }
+        let t0 = Instant::now();
+        let seg = self.resident(elems)?;
+        let check_s = t0.elapsed().as_secs_f64();
+        let mut slots = std::mem::take(&mut self.index);
+        slots.clear();
+        slots.extend(self.slots(seg));
+        let r = self.dispatch(kind, &slots, inputs, inertia, out);
+        self.index = slots;
+        let mut t = r?;
+        t.check_s += check_s;
+        t.upload_s += check_s;
+        Ok(t)
+    }
+
+    /// Evaluate one batch of registered elements: element i is table slot `slots[i]`
+    /// (see [`register`](Self::register)); `residual` runs the residual kernel.
+    pub fn evaluate_slots(
+        &mut self,
+        slots: &[u32],
+        inputs: &[ElemIn],
+        residual: bool,
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<GpuTimes, GpuError> {
+        let kind = if residual { Kind::Residual } else { Kind::Full };
+        self.dispatch(kind, slots, inputs, inertia, out)
+    }
+
+    fn dispatch(
+        &mut self,
+        kind: Kind,
+        slots: &[u32],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<GpuTimes, GpuError> {
+        match self.precision {
+            Precision::F32 => self.dispatch_as::<layout::F32>(kind, slots, inputs, inertia, out),
+            Precision::F64 => self.dispatch_as::<layout::F64>(kind, slots, inputs, inertia, out),
+        }
+    }
+
+    fn dispatch_as<P: Records>(
+        &mut self,
+        kind: Kind,
+        slots: &[u32],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<GpuTimes, GpuError> {
+        let n = inputs.len();
         if n == 0 {
             return Ok(GpuTimes::default());
+        }
+        if slots.len() != n || out.len() < n {
+            return Err(GpuError::Other(format!(
+                "batch of {n} inputs with {} slots and {} outputs",
+                slots.len(),
+                out.len()
+            )));
         }
         if n > self.max_elements() {
             return Err(GpuError::TooLarge(n, self.max_elements()));
         }
-        let sz = |b: usize| b;
-        let sizes = [
-            sz(std::mem::size_of::<P::Data>()),
-            sz(std::mem::size_of::<P::In>()),
-            sz(std::mem::size_of::<P::Force>()),
-            sz(std::mem::size_of::<P::Inertia>()),
-        ];
+        let used = self.table.mirror.len();
+        if let Some(bad) = slots.iter().find(|&&s| s as usize >= used) {
+            return Err(GpuError::Other(format!(
+                "table slot {bad} not registered ({used} slots)"
+            )));
+        }
         let t0 = Instant::now();
+        // `corotate` was switched since the table was written: rewrite it in the new form
+        if self.table.corotated != self.corotate {
+            self.table.corotated = self.corotate;
+            for id in 0..self.table.segs.len() {
+                if self.table.segs[id].live {
+                    self.write_segment(id);
+                }
+            }
+        }
+        let sizes = [
+            std::mem::size_of::<P::In>(),
+            std::mem::size_of::<P::Force>(),
+            std::mem::size_of::<P::Inertia>(),
+            std::mem::size_of::<P::Residual>(),
+            std::mem::size_of::<P::Acc>(),
+        ];
         self.ensure(n, sizes);
-        self.up_data.clear();
+        self.ensure_groups();
+        let with_acc = kind == Kind::Residual && inertia;
         self.up_in.clear();
+        self.up_acc.clear();
         self.rot.clear();
-        for (e, i) in elems.iter().zip(inputs) {
+        for (&slot, i) in slots.iter().zip(inputs) {
             if self.corotate {
-                let (e2, i2, q) = corotate(e, i);
-                self.up_data
-                    .extend_from_slice(bytemuck::bytes_of(&P::data(&e2)));
+                let e = &self.table.mirror[slot as usize];
+                let (_, i2, q) = corotate(e, i);
                 self.up_in
                     .extend_from_slice(bytemuck::bytes_of(&P::input(&i2)));
+                if with_acc {
+                    self.up_acc
+                        .extend_from_slice(bytemuck::bytes_of(&P::acc(&i2)));
+                }
                 self.rot.push(q);
             } else {
-                self.up_data
-                    .extend_from_slice(bytemuck::bytes_of(&P::data(e)));
                 self.up_in
                     .extend_from_slice(bytemuck::bytes_of(&P::input(i)));
+                if with_acc {
+                    self.up_acc
+                        .extend_from_slice(bytemuck::bytes_of(&P::acc(i)));
+                }
             }
         }
         let b = self.bufs.as_ref().expect("buffers sized above");
+        let g = self.groups.as_ref().expect("bind groups made above");
         let params = Params {
             n_elem: n as u32,
+            inertia: inertia as u32,
             ..Default::default()
         };
+        let mut bytes_up = (std::mem::size_of::<Params>() + self.up_in.len()) as u64;
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        self.queue.write_buffer(&b.elems, 0, &self.up_data);
         self.queue.write_buffer(&b.inputs, 0, &self.up_in);
+        if with_acc {
+            self.queue.write_buffer(&b.accs, 0, &self.up_acc);
+            bytes_up += self.up_acc.len() as u64;
+        }
+        // the slots stay the same from one Newton iteration to the next unless the batch
+        // changed composition: write them only then
+        if self.last_index.as_slice() != slots {
+            self.queue
+                .write_buffer(&b.index, 0, bytemuck::cast_slice(slots));
+            self.last_index.clear();
+            self.last_index.extend_from_slice(slots);
+            bytes_up += 4 * n as u64;
+        }
         let t1 = Instant::now();
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            pass.set_pipeline(&self.force_pipe);
-            pass.set_bind_group(0, &b.force_group, &[]);
-            pass.dispatch_workgroups((n as u32 * 12).div_ceil(WORKGROUP), 1, 1);
-            if inertia {
-                pass.set_pipeline(&self.inertia_pipe);
-                pass.set_bind_group(0, &b.inertia_group, &[]);
-                pass.dispatch_workgroups((n as u32).div_ceil(WORKGROUP), 1, 1);
+            match kind {
+                Kind::Full => {
+                    pass.set_pipeline(&self.force_pipe);
+                    pass.set_bind_group(0, &g.force, &[]);
+                    pass.dispatch_workgroups((n as u32 * 12).div_ceil(WORKGROUP), 1, 1);
+                    if inertia {
+                        pass.set_pipeline(&self.inertia_pipe);
+                        pass.set_bind_group(0, &g.inertia, &[]);
+                        pass.dispatch_workgroups((n as u32).div_ceil(WORKGROUP), 1, 1);
+                    }
+                }
+                Kind::Residual => {
+                    pass.set_pipeline(&self.residual_pipe);
+                    pass.set_bind_group(0, &g.residual, &[]);
+                    pass.dispatch_workgroups((n as u32).div_ceil(WORKGROUP), 1, 1);
+                }
             }
         }
         self.queue.submit([enc.finish()]);
         self.wait()?;
         let t2 = Instant::now();
-        let fbytes = (n * sizes[2]) as u64;
-        let ibytes = (n * sizes[3]) as u64;
+        // (device buffer, staging buffer, bytes) of each output read back
+        let reads: Vec<(&wgpu::Buffer, &wgpu::Buffer, u64)> = match kind {
+            Kind::Full => {
+                let mut r = vec![(&b.force, &b.staging_force, (n * sizes[1]) as u64)];
+                if inertia {
+                    r.push((&b.inertia, &b.staging_inertia, (n * sizes[2]) as u64));
+                }
+                r
+            }
+            Kind::Residual => vec![(&b.residual, &b.staging_residual, (n * sizes[3]) as u64)],
+        };
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        enc.copy_buffer_to_buffer(&b.force, 0, &b.staging_force, 0, fbytes);
-        if inertia {
-            enc.copy_buffer_to_buffer(&b.inertia, 0, &b.staging_inertia, 0, ibytes);
+        for &(src, dst, bytes) in &reads {
+            enc.copy_buffer_to_buffer(src, 0, dst, 0, bytes);
         }
         self.queue.submit([enc.finish()]);
         let (tx, rx) = std::sync::mpsc::channel();
-        let tx2 = tx.clone();
-        b.staging_force
-            .slice(0..fbytes)
-            .map_async(wgpu::MapMode::Read, move |r| {
-                let _ = tx.send(r);
-            });
-        if inertia {
-            b.staging_inertia
-                .slice(0..ibytes)
+        for &(_, dst, bytes) in &reads {
+            let tx = tx.clone();
+            dst.slice(0..bytes)
                 .map_async(wgpu::MapMode::Read, move |r| {
-                    let _ = tx2.send(r);
+                    let _ = tx.send(r);
                 });
-        } else {
-            drop(tx2);
         }
+        drop(tx);
         self.wait()?;
-        for _ in 0..(1 + inertia as usize) {
+        for _ in 0..reads.len() {
             rx.recv()
                 .map_err(|e| GpuError::Other(format!("map: {e}")))?
                 .map_err(|e| GpuError::Other(format!("map: {e}")))?;
         }
+        let bytes_down: u64 = reads.iter().map(|r| r.2).sum();
         {
-            let fview = b
-                .staging_force
-                .slice(0..fbytes)
-                .get_mapped_range()
-                .map_err(|e| GpuError::Other(format!("map range: {e}")))?;
-            let fo: &[P::Force] = bytemuck::cast_slice(&fview);
-            if inertia {
-                let iview = b
-                    .staging_inertia
-                    .slice(0..ibytes)
+            let view = |k: usize| {
+                let (_, dst, bytes) = reads[k];
+                dst.slice(0..bytes)
                     .get_mapped_range()
-                    .map_err(|e| GpuError::Other(format!("map range: {e}")))?;
-                let io: &[P::Inertia] = bytemuck::cast_slice(&iview);
-                for i in 0..n {
-                    P::output(&fo[i], Some(&io[i]), &mut out[i]);
+                    .map_err(|e| GpuError::Other(format!("map range: {e}")))
+            };
+            match kind {
+                Kind::Full => {
+                    let fview = view(0)?;
+                    let fo: &[P::Force] = bytemuck::cast_slice(&fview);
+                    if inertia {
+                        let iview = view(1)?;
+                        let io: &[P::Inertia] = bytemuck::cast_slice(&iview);
+                        for i in 0..n {
+                            P::output(&fo[i], Some(&io[i]), &mut out[i]);
+                        }
+                    } else {
+                        for i in 0..n {
+                            P::output(&fo[i], None, &mut out[i]);
+                        }
+                    }
                 }
-            } else {
-                for i in 0..n {
-                    P::output(&fo[i], None, &mut out[i]);
+                Kind::Residual => {
+                    let rview = view(0)?;
+                    let ro: &[P::Residual] = bytemuck::cast_slice(&rview);
+                    for i in 0..n {
+                        P::residual_output(&ro[i], &mut out[i]);
+                    }
                 }
             }
         }
-        b.staging_force.unmap();
-        if inertia {
-            b.staging_inertia.unmap();
+        for &(_, dst, _) in &reads {
+            dst.unmap();
         }
         if self.corotate {
             for (o, q) in out.iter_mut().zip(&self.rot) {
-                corotate_back(q, o);
+                corotate_back(q, o, kind == Kind::Residual);
             }
         }
-        if inertia {
-            for (o, i) in out.iter_mut().zip(inputs) {
-                o.products_from_m(i);
+        match kind {
+            Kind::Full if inertia => {
+                for (o, i) in out.iter_mut().zip(inputs) {
+                    o.products_from_m(i);
+                }
             }
-        } else {
-            for o in out.iter_mut() {
-                o.finert = [0.0; NDOF];
-                o.mv = [0.0; NDOF];
+            Kind::Full => {
+                for o in out.iter_mut().take(n) {
+                    o.finert = [0.0; NDOF];
+                    o.mv = [0.0; NDOF];
+                }
             }
+            // the kernel wrote finert and mv (zeros without inertia)
+            Kind::Residual => {}
         }
         let t3 = Instant::now();
         Ok(GpuTimes {
             upload_s: (t1 - t0).as_secs_f64(),
             kernel_s: (t2 - t1).as_secs_f64(),
             download_s: (t3 - t2).as_secs_f64(),
+            check_s: 0.0,
             batches: 1,
             elements: n as u64,
+            bytes_up,
+            bytes_down,
         })
     }
 
@@ -670,6 +1130,34 @@ impl GpuEval {
     pub fn times(&self) -> GpuTimes {
         *self.times.lock().unwrap_or_else(|p| p.into_inner())
     }
+    /// Model data written to the device so far (see [`GpuContext::evaluate`]'s cache).
+    pub fn model_uploads(&self) -> ModelUploads {
+        self.ctx
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .model_uploads()
+    }
+    fn run(
+        &self,
+        residual: bool,
+        elems: &[ElemData],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<(), EvalError> {
+        let mut ctx = self.ctx.lock().unwrap_or_else(|p| p.into_inner());
+        let r = if residual {
+            ctx.evaluate_residual(elems, inputs, inertia, out)
+        } else {
+            ctx.evaluate(elems, inputs, inertia, out)
+        };
+        let t = r.map_err(|e| EvalError {
+            backend: self.name.clone(),
+            message: e.to_string(),
+        })?;
+        self.times.lock().unwrap_or_else(|p| p.into_inner()).add(&t);
+        Ok(())
+    }
 }
 
 impl ElementEval for GpuEval {
@@ -680,15 +1168,16 @@ impl ElementEval for GpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        let mut ctx = self.ctx.lock().unwrap_or_else(|p| p.into_inner());
-        let t = ctx
-            .evaluate(elems, inputs, inertia, out)
-            .map_err(|e| EvalError {
-                backend: self.name.clone(),
-                message: e.to_string(),
-            })?;
-        self.times.lock().unwrap_or_else(|p| p.into_inner()).add(&t);
-        Ok(())
+        self.run(false, elems, inputs, inertia, out)
+    }
+    fn evaluate_residual(
+        &self,
+        elems: &[ElemData],
+        inputs: &[ElemIn],
+        inertia: bool,
+        out: &mut [ElemOut],
+    ) -> Result<(), EvalError> {
+        self.run(true, elems, inputs, inertia, out)
     }
     fn name(&self) -> String {
         self.name.clone()
