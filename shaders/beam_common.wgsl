@@ -1,5 +1,5 @@
 // Shared part of the beam kernels: buffer structs, dual and hyper-dual scalars, and the
-// element kinematics, line by line the CPU functions of src/element/beam.rs and ad.rs.
+// element kinematics, line by line the CPU functions of src/element/kinematics.rs and ad.rs.
 //
 // `real` is f32 or f64: the host replaces the alias line below before compiling, so one
 // source serves both precisions. Every struct holds only arrays of `real`, so WGSL adds no
@@ -173,7 +173,7 @@ fn hm_vec(m: HM, v: HV) -> HV {
     );
 }
 
-// ------------------------------------------------------------ kinematics (beam.rs)
+// ------------------------------------------------------------ kinematics (kinematics.rs)
 struct KinD {
     tc: DM,
     phi: array<D, 6>,
@@ -192,7 +192,7 @@ fn ang_d(e: DV, tc2: DV, tc3: DV, t: DM) -> DV {
     );
 }
 
-// beam::kinematics in dual numbers
+// kinematics::kinematics in dual numbers
 fn kin_d(chord0: array<real, 3>, l0: real, u1: DV, u2: DV, t1: DM, t2: DM) -> KinD {
     let bx = DV(dc(chord0[0]), dc(chord0[1]), dc(chord0[2]));
     let d = dv_sub(u2, u1);
@@ -232,7 +232,7 @@ fn ang_h(e: HV, tc2: HV, tc3: HV, t: HM) -> HV {
     );
 }
 
-// beam::kinematics in hyper-dual numbers
+// kinematics::kinematics in hyper-dual numbers
 fn kin_h(chord0: array<real, 3>, l0: real, u1: HV, u2: HV, t1: HM, t2: HM) -> KinH {
     let bx = HV(hc(chord0[0]), hc(chord0[1]), hc(chord0[2]));
     let d = hv_sub(u2, u1);
@@ -253,7 +253,7 @@ fn kin_h(chord0: array<real, 3>, l0: real, u1: HV, u2: HV, t1: HM, t2: HM) -> Ki
     return k;
 }
 
-// beam::gradient in dual numbers: the deformation measures' first derivatives over the 12
+// force::gradient in dual numbers: the deformation measures' first derivatives over the 12
 // element dofs (closed form). Evaluated on dual inputs its derivative part is the
 // derivative of the gradient, which gives the tangent.
 struct GradD {
@@ -329,7 +329,7 @@ fn gradient_d(chord0: array<real, 3>, l0: real, u1: DV, u2: DV, t1: DM, t2: DM) 
 }
 
 // Node frame T = r · frame0 and its dual perturbation along one element dof
-// (beam::perturb_dual): dof `comp` of this node (0..2 translation, 3..5 spin), or none.
+// (kinematics::perturb_dual): dof `comp` of this node (0..2 translation, 3..5 spin), or none.
 fn frame_dual(t: M3, comp: u32, on: bool) -> DM {
     var out: DM;
     var w = vec3<real>(0.0, 0.0, 0.0);

@@ -1,5 +1,5 @@
 // Internal force f, consistent tangent K and strain energy of every element: the WGSL twin
-// of beam::internal_force_tangent + beam::strain_energy (src/element/beam.rs).
+// of force::internal_force_tangent + kinematics::strain_energy (src/element/force.rs, kinematics.rs).
 //
 // One invocation per (element, column c): the closed-form force is evaluated in dual
 // numbers along element dof c, so its value part is f and its derivative part is column c
@@ -15,7 +15,7 @@ struct ForceOut {
     pad: array<real, 3>,
 }
 
-// beam::stretch: chord change plus the length the bending shape adds
+// kinematics::stretch: chord change plus the length the bending shape adds
 fn stretch_d(l0: real, k: KinD) -> D {
     let fy1 = k.phi[1];
     let fz1 = k.phi[2];
@@ -26,7 +26,7 @@ fn stretch_d(l0: real, k: KinD) -> D {
     return k.u1 + (l0 / 30.0) * q;
 }
 
-// beam::energy_partials: ∂U/∂φ (6) and the axial force N = ∂U/∂ℓ (last entry)
+// force::energy_partials: ∂U/∂φ (6) and the axial force N = ∂U/∂ℓ (last entry)
 fn energy_partials_d(p: array<real, 7>, l0: real, k: KinD) -> array<D, 7> {
     let fx1 = k.phi[0];
     let fy1 = k.phi[1];
@@ -50,7 +50,7 @@ fn energy_partials_d(p: array<real, 7>, l0: real, k: KinD) -> array<D, 7> {
     );
 }
 
-// beam::energy (value part only)
+// kinematics::energy (value part only)
 fn energy_value(p: array<real, 7>, l0: real, k: KinD) -> real {
     let fx1 = k.phi[0].x;
     let fy1 = k.phi[1].x;

@@ -1,12 +1,12 @@
 // Consistent mass matrix M, quadratic-velocity vector S and its velocity derivative C of
-// every element: the WGSL twin of beam::inertia_columns (src/element/beam.rs), the
+// every element: the WGSL twin of reference::inertia_columns (src/element/reference.rs), the
 // per-column hyper-dual route that the CPU keeps as the reference of its faster
-// beam::inertia_full (C from the gradients' time derivatives; the same C to 1e-12).
+// inertia::inertia_full (C from the gradients' time derivatives; the same C to 1e-12).
 //
 // One invocation per element. M = ∫μ gᵀg from the closed-form field gradients g at the
-// four Gauss points (beam::gradients_closed); S_j = ∫μ g_j·H(v, v) and
+// four Gauss points (inertia::gradients_closed); S_j = ∫μ g_j·H(v, v) and
 // C_jk = 2∫μ g_j·H(v, e_k), with H the mixed second derivative of the position field,
-// evaluated in hyper-dual numbers (beam::field_derivs). Every output word is written on
+// evaluated in hyper-dual numbers (inertia::field_derivs). Every output word is written on
 // every dispatch, no atomics. (beam_common.wgsl is prepended by the host.)
 
 struct InertiaOut {
@@ -32,7 +32,7 @@ fn m3_vec(m: M3, v: vec3<real>) -> vec3<real> {
     );
 }
 
-// beam::gradients_closed into `gr`
+// inertia::gradients_closed into `gr`
 fn gradients_closed(ed: ElemData, inp: ElemIn, t1: M3, t2: M3) {
     let u1 = pos_dual(inp.u1, 0u, false);
     let u2 = pos_dual(inp.u2, 0u, false);
@@ -93,7 +93,7 @@ fn gradients_closed(ed: ElemData, inp: ElemIn, t1: M3, t2: M3) {
     }
 }
 
-// beam::perturb: node position and frame along two directions (da, db) of that node
+// kinematics::perturb: node position and frame along two directions (da, db) of that node
 fn perturb_h(x: array<real, 3>, t: M3, da: array<real, 6>, db: array<real, 6>) -> HM {
     let wa = vec3<real>(da[3], da[4], da[5]);
     let wb = vec3<real>(db[3], db[4], db[5]);
@@ -111,7 +111,7 @@ fn perturb_h(x: array<real, 3>, t: M3, da: array<real, 6>, db: array<real, 6>) -
     return tp;
 }
 
-// beam::field_derivs: the ab parts of the position fields at the Gauss points into `hh`
+// inertia::field_derivs: the ab parts of the position fields at the Gauss points into `hh`
 fn field_derivs(ed: ElemData, inp: ElemIn, t1: M3, t2: M3, da: array<real, 12>, db: array<real, 12>) {
     let u1 = HV(H(inp.u1[0], da[0], db[0], 0.0), H(inp.u1[1], da[1], db[1], 0.0), H(inp.u1[2], da[2], db[2], 0.0));
     let u2 = HV(H(inp.u2[0], da[6], db[6], 0.0), H(inp.u2[1], da[7], db[7], 0.0), H(inp.u2[2], da[8], db[8], 0.0));
@@ -127,7 +127,7 @@ fn field_derivs(ed: ElemData, inp: ElemIn, t1: M3, t2: M3, da: array<real, 12>, 
     let fy2 = k.phi[4];
     let fz2 = k.phi[5];
     for (var gp = 0u; gp < 4u; gp++) {
-        // beam::section_fields
+        // kinematics::section_fields
         let xi = GAUSS_X[gp];
         let n1 = xi - 2.0 * xi * xi + xi * xi * xi;
         let n2 = -xi * xi + xi * xi * xi;
@@ -149,7 +149,7 @@ fn field_derivs(ed: ElemData, inp: ElemIn, t1: M3, t2: M3, da: array<real, 12>, 
     }
 }
 
-// Σ_gp Σ_field w_gp μ_field g_j · hh, times l0 (beam::inertia's `project`)
+// Σ_gp Σ_field w_gp μ_field g_j · hh, times l0 (inertia::inertia_columns.s `project`)
 fn project(j: u32, wv: array<real, 3>, l0: real, scale: real) -> real {
     var w = wv;
     var acc: real = 0.0;

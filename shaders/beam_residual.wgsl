@@ -1,7 +1,7 @@
 // Residual-only evaluation for modified-Newton iterations (ElementEval::evaluate_residual):
 // the internal force f and the strain energy, and when asked the inertial force
 // finert = M·acc + S and M·v12, but neither K nor M, S's derivative C: the WGSL twin of
-// CpuEval::one_residual (beam::internal_force, beam::inertia_residual).
+// CpuEval::one_residual (force::internal_force, inertia::inertia_residual).
 //
 // One invocation per element. f is the force kernel's value part (gradient_d with no
 // perturbation: the derivative lanes stay zero). M is never formed: M·x = ∫μ gᵀ(g·x), so
