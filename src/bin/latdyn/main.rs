@@ -7,6 +7,9 @@
 //! SIGHUP), the output file left valid and marked interrupted; 5 the output could not be
 //! written mid-run (the last valid flush is kept); 70 internal error (a panic: a bug).
 
+mod bench;
+mod plot;
+
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -412,7 +415,7 @@ struct PlotArgs {
         value_name = "W0,K",
         requires = "campbell",
         allow_hyphen_values = true,
-        value_parser = latdyn::plot::parse_pair
+        value_parser = crate::plot::parse_pair
     )]
     southwell: Option<(f64, f64)>,
     /// Campbell diagram: eigenvalue branches from `latdyn modes MODEL --vary omega=A:B:N
@@ -429,7 +432,7 @@ struct PlotArgs {
     #[arg(long)]
     title: Option<String>,
     /// image size in pixels
-    #[arg(long, value_name = "WxH", default_value = "1000x640", value_parser = latdyn::plot::parse_size)]
+    #[arg(long, value_name = "WxH", default_value = "1000x640", value_parser = crate::plot::parse_size)]
     size: (u32, u32),
     /// machine-readable output on stdout (Campbell: the crossings)
     #[arg(long)]
@@ -562,10 +565,10 @@ fn is_csv(path: &std::path::Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
 }
 
-/// The speed-against-error suite (src/bench.rs); the report files are written even when
+/// The speed-against-error suite (bench.rs); the report files are written even when
 /// `--json` prints the report.
 fn bench(args: &BenchArgs) -> anyhow::Result<()> {
-    use latdyn::bench;
+    use crate::bench;
     let threads = args.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -622,7 +625,7 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
 
 /// Chart a results file: time histories, a cross plot or a Campbell diagram.
 fn plot(args: &PlotArgs) -> anyhow::Result<()> {
-    use latdyn::plot as lp;
+    use crate::plot as lp;
     let opts = lp::PlotOptions {
         title: args.title.clone(),
         size: args.size,
@@ -686,11 +689,11 @@ fn staging_path(out: &std::path::Path) -> PathBuf {
 /// Draws the chart `args` asks for into `path`.
 fn plot_to(
     args: &PlotArgs,
-    opts: &latdyn::plot::PlotOptions,
-    c: &latdyn::plot::Campaign,
+    opts: &crate::plot::PlotOptions,
+    c: &crate::plot::Campaign,
     path: &std::path::Path,
-) -> anyhow::Result<latdyn::plot::PlotSummary> {
-    use latdyn::plot as lp;
+) -> anyhow::Result<crate::plot::PlotSummary> {
+    use crate::plot as lp;
     let summary = if let Some(param) = &args.campbell {
         let derived = args
             .derived

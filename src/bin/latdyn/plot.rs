@@ -7,7 +7,7 @@
 //! - a Campbell diagram ([`plot_campbell`]): a derived frequency of each variant against
 //!   a parameter (rotor speed Ω in rad/s), with the rotor harmonics n·Ω, an optional
 //!   Southwell curve and the crossings of the data with the harmonics
-//!   ([`campbell_crossings`]).
+//!   ([`latdyn::frequency::campbell_crossings`]).
 //!
 //! Drawing uses `plotters` with the DejaVu Sans font embedded in the binary (registered
 //! with plotters' `ab_glyph` text renderer), so PNG text is the same on every machine and
@@ -19,6 +19,7 @@ use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 
+use latdyn::frequency::campbell_crossings;
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
@@ -255,46 +256,6 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), PlotError> {
     Ok((w, h))
 }
 
-/// Where the rotor harmonics n·Ω (n = 1..=`n_max`) cross the curve through the points
-/// (`x` = Ω, `y` = frequency, both in rad/s, or both in any one unit), the curve being
-/// linear between points (sorted by x; non-finite points skipped).
-///
-/// Returns (n, Ω) sorted by n, then Ω. A point of the curve lying exactly on n·Ω counts
-/// once; Ω = 0 is never a crossing (a zero frequency at rest is not a resonance).
-pub fn campbell_crossings(x: &[f64], y: &[f64], n_max: usize) -> Vec<(usize, f64)> {
-    let mut pts: Vec<(f64, f64)> = x
-        .iter()
-        .zip(y)
-        .filter(|(a, b)| a.is_finite() && b.is_finite())
-        .map(|(&a, &b)| (a, b))
-        .collect();
-    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut out = Vec::new();
-    for n in 1..=n_max {
-        let nf = n as f64;
-        let g = |p: (f64, f64)| p.1 - nf * p.0;
-        for w in pts.windows(2) {
-            let (g0, g1) = (g(w[0]), g(w[1]));
-            let at = if g0 == 0.0 {
-                Some(w[0].0)
-            } else if g0 * g1 < 0.0 {
-                Some(w[0].0 + g0 / (g0 - g1) * (w[1].0 - w[0].0))
-            } else {
-                None
-            };
-            if let Some(om) = at.filter(|&om| om != 0.0) {
-                out.push((n, om));
-            }
-        }
-        if let Some(&last) = pts.last() {
-            if g(last) == 0.0 && last.0 != 0.0 {
-                out.push((n, last.0));
-            }
-        }
-    }
-    out
-}
-
 /// A sensor dataset's description (`/sensors/<NAME>` and its attributes).
 #[derive(Clone, Debug)]
 pub struct SensorInfo {
@@ -431,11 +392,6 @@ impl Campaign {
             n_variants,
             states,
         })
-    }
-
-    /// Path of the file.
-    pub fn path(&self) -> &Path {
-        &self.path
     }
 
     fn err(&self, message: String) -> PlotError {
