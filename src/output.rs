@@ -212,6 +212,31 @@ pub struct CampaignMeta {
     pub sensors: Vec<SensorMeta>,
 }
 
+impl CampaignMeta {
+    /// The layout of one run of `m` (`run -o`): a single variant holding the model's
+    /// parameters, global index 0, on the model's output grid, one thread.
+    pub fn single_run(
+        m: &crate::model::Model,
+        stage: &crate::ensemble::Stage,
+        command_line: String,
+    ) -> CampaignMeta {
+        CampaignMeta {
+            command_line,
+            model_path: m.path.clone(),
+            model_source: m.source.clone(),
+            backend: stage.backend.clone(),
+            precision: stage.precision.clone(),
+            adapter: stage.adapter.clone(),
+            threads: 1,
+            parameter_names: m.params.iter().map(|(n, _)| n.clone()).collect(),
+            parameter_values: vec![m.params.iter().map(|(_, v)| *v).collect()],
+            global_index: vec![0],
+            time: crate::solver::dynamics::output_times(m),
+            sensors: SensorMeta::of_model(m),
+        }
+    }
+}
+
 /// Outcome of one variant, stored under `/status`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VariantStatus {
@@ -245,6 +270,32 @@ impl Default for VariantStatus {
             energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
             warnings: String::new(),
+        }
+    }
+}
+
+impl VariantStatus {
+    /// The status of a variant that ended in `state` after a run with these statistics
+    /// (`t_fail` NaN unless it failed or was interrupted; `warnings` one per line).
+    pub fn of_run(
+        state: VariantState,
+        message: String,
+        t_fail: f64,
+        stats: &crate::solver::dynamics::RunStats,
+        wall_s: f64,
+        warnings: String,
+    ) -> VariantStatus {
+        VariantStatus {
+            state,
+            message,
+            t_fail,
+            steps: stats.steps as u64,
+            rejected_steps: stats.rejected_steps as u64,
+            wall_s,
+            energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+            energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
+            time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
+            warnings,
         }
     }
 }

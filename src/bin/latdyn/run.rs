@@ -34,7 +34,14 @@ impl RunSink {
             target.replace_with(text.as_bytes())?;
             Ok(RunSink::Csv { target, text })
         } else {
-            let mut w = latdyn::output::CampaignWriter::create_at(target, &single_meta(m, stage))?;
+            let mut w = latdyn::output::CampaignWriter::create_at(
+                target,
+                &latdyn::output::CampaignMeta::single_run(
+                    m,
+                    stage,
+                    std::env::args().collect::<Vec<_>>().join(" "),
+                ),
+            )?;
             let running = latdyn::output::VariantStatus {
                 state: latdyn::output::VariantState::Running,
                 ..Default::default()
@@ -133,22 +140,18 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(latdyn::solver::dynamics::DynamicsError::Interrupted { .. })
     );
     if let Some(s) = sink {
-        let status = VariantStatus {
-            state: match &err {
+        let status = VariantStatus::of_run(
+            match &err {
                 None => VariantState::Completed,
                 Some(_) if interrupted => VariantState::Interrupted,
                 Some(_) => VariantState::Failed,
             },
-            message: err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
-            t_fail: err.as_ref().map(|e| e.time()).unwrap_or(f64::NAN),
-            steps: stats.steps as u64,
-            rejected_steps: stats.rejected_steps as u64,
-            wall_s: wall,
-            energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
-            energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
-            time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
-            warnings: stats.warnings().join("\n"),
-        };
+            err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+            err.as_ref().map(|e| e.time()).unwrap_or(f64::NAN),
+            &stats,
+            wall,
+            stats.warnings().join("\n"),
+        );
         // after an output error the last good flush is what stays
         if out_err.is_none() {
             if let Err(e) = s.finish(&status) {
@@ -168,21 +171,22 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     if args.model.json {
         let mut sensors = serde_json::Map::new();
-        for (k, sn) in m.sensors.iter().enumerate() {
+        let summaries = latdyn::ensemble::summarize(&m, &hist);
+        for ((k, sn), sum) in m.sensors.iter().enumerate().zip(&summaries) {
             let vals = &hist.values[k];
-            let nc = vals.first().map(|v| v.len()).unwrap_or(0);
-            let fold = |f: fn(f64, f64) -> f64, init: f64| -> Vec<f64> {
-                (0..nc)
-                    .map(|c| vals.iter().map(|v| v[c]).fold(init, f))
-                    .collect()
+            // before its first sample a run has no extremes ([]) and no final value (null)
+            let none: &[f64] = &[];
+            let (min, max) = match vals.is_empty() {
+                true => (none, none),
+                false => (&sum.min[..], &sum.max[..]),
             };
             sensors.insert(
                 sn.name.clone(),
                 serde_json::json!({
                     "t": hist.t,
                     "values": vals,
-                    "min": fold(f64::min, f64::INFINITY),
-                    "max": fold(f64::max, f64::NEG_INFINITY),
+                    "min": min,
+                    "max": max,
                     "final": vals.last(),
                     "components": latdyn::sensors::components(&sn.kind),
                 }),
@@ -238,28 +242,6 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
         Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
         None => Ok(()),
-    }
-}
-
-/// The campaign layout of a single run (one variant, the model's parameters).
-pub(crate) fn single_meta(
-    m: &Model,
-    stage: &latdyn::ensemble::Stage,
-) -> latdyn::output::CampaignMeta {
-    use latdyn::output::*;
-    CampaignMeta {
-        command_line: std::env::args().collect::<Vec<_>>().join(" "),
-        model_path: m.path.clone(),
-        model_source: m.source.clone(),
-        backend: stage.backend.clone(),
-        precision: stage.precision.clone(),
-        adapter: stage.adapter.clone(),
-        threads: 1,
-        parameter_names: m.params.iter().map(|(n, _)| n.clone()).collect(),
-        parameter_values: vec![m.params.iter().map(|(_, v)| *v).collect()],
-        global_index: vec![0],
-        time: latdyn::solver::dynamics::output_times(m),
-        sensors: SensorMeta::of_model(m),
     }
 }
 
