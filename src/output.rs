@@ -66,6 +66,12 @@
 //! /xarray/<DERIVED>, /xarray/state   hard links to /derived/*, /status/state (variant)
 //! ```
 //!
+//! When the campaign varies one parameter whose values are strictly monotonic in global
+//! index order (a `--vary` range; see [`xarray_axis`]), that parameter names the variant
+//! axis instead: `/xarray/<PARAM>` is the dimension scale `<PARAM>`, and
+//! `/xarray/variant` (the global indices) a coordinate on it (attr coordinates =
+//! `variant`), so `sel(<PARAM>=..., method="nearest")` needs no `set_xindex`.
+//!
 //! Attaching the scales gives /sensors/*, /derived/* and /status/state a
 //! `DIMENSION_LIST` attribute (and `coordinates`); the samples are not copied.
 //!
@@ -1383,19 +1389,45 @@ impl CampaignWriter {
             .iter()
             .map(|&x| i64::try_from(x).unwrap_or(i64::MAX))
             .collect();
+        // the variant axis is named after the one varied parameter when its values order
+        // the whole campaign strictly (a `--vary` range), so `sel(omega=..., method=
+        // "nearest")` works as it stands; otherwise it is `variant`
+        let axis = xarray_axis(c, &m.parameter_names).filter(|(name, _)| !used.contains(name));
         let variant = g
             .new_dataset::<i64>()
             .shape([gi.len()])
             .create("variant")
             .map_err(e("/variant"))?;
         variant.write_raw(&gi).map_err(e("/variant"))?;
-        variant.set_scale(Some("variant")).map_err(e("/variant"))?;
         set_ds_string_attr(
             &variant,
             "long_name",
             "global index of the variant in the campaign",
         )
         .map_err(e("/variant"))?;
+        let mut coords = Vec::new();
+        let axis_ds = match &axis {
+            None => {
+                variant.set_scale(Some("variant")).map_err(e("/variant"))?;
+                variant
+            }
+            Some((name, k)) => {
+                let what = format!("/{name}");
+                let col: Vec<f64> = m.parameter_values.iter().map(|row| row[*k]).collect();
+                let ds = g
+                    .new_dataset::<f64>()
+                    .shape([col.len()])
+                    .create(name)
+                    .map_err(e(&what))?;
+                ds.write_raw(&col).map_err(e(&what))?;
+                ds.set_scale(Some(name)).map_err(e(&what))?;
+                variant.attach_scale(0, &ds).map_err(e("/variant"))?;
+                used.push(name.clone());
+                coords.push("variant");
+                ds
+            }
+        };
+        let variant = axis_ds;
         let time = g
             .new_dataset::<f64>()
             .shape([self.n_time])
@@ -1404,7 +1436,6 @@ impl CampaignWriter {
         time.write_raw(&m.time).map_err(e("/time"))?;
         time.set_scale(Some("time")).map_err(e("/time"))?;
         set_ds_string_attr(&time, "units", "s").map_err(e("/time"))?;
-        let mut coords = Vec::new();
         for name in &c.varied {
             let Some(k) = m.parameter_names.iter().position(|p| p == name) else {
                 continue;
@@ -1467,6 +1498,33 @@ impl CampaignWriter {
         }
         Ok(())
     }
+}
+
+/// The parameter that names the variant axis of `/xarray`, with its column in
+/// `/parameters/values`: the campaign's only varied parameter when its values, in global
+/// index order, are finite and strictly monotonic (a `--vary` range, or a one-column
+/// `--variants` table in order), so it is a valid xarray index in every shard and in the
+/// merged file alike (a subset of a strictly monotonic sequence is one). None otherwise:
+/// the axis is `variant`.
+pub fn xarray_axis(
+    c: &crate::campaign::CampaignInfo,
+    parameter_names: &[String],
+) -> Option<(String, usize)> {
+    let [name] = c.varied.as_slice() else {
+        return None;
+    };
+    let k = parameter_names.iter().position(|p| p == name)?;
+    let col: Vec<f64> = c
+        .variants
+        .iter()
+        .filter_map(|r| r.first().copied())
+        .collect();
+    if col.len() != c.variants.len() || col.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let up = col.windows(2).all(|w| w[0] < w[1]);
+    let down = col.windows(2).all(|w| w[0] > w[1]);
+    (up || down).then(|| (name.clone(), k))
 }
 
 /// `campaign_id`, `campaign_hash` and `/campaign` (see the layout in the module docs).
