@@ -141,6 +141,8 @@
 //! Every write is a complete file at a temporary path in the same directory, renamed
 //! over the target (atomic on POSIX file systems).
 
+pub mod layout;
+
 use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
