@@ -221,7 +221,8 @@ impl CampaignFile {
         if !path.is_file() {
             return Err(err("no such file".into()));
         }
-        let file = Reader::open(path).map_err(|e| err(format!("not a readable HDF5 file ({e})")))?;
+        let file =
+            Reader::open(path).map_err(|e| err(format!("not a readable HDF5 file ({e})")))?;
         if file.root_attr(layout::attr::FORMAT).as_deref() != Some(layout::FORMAT) {
             return Err(err(
                 "not a latdyn campaign file (no root attribute format = \
@@ -236,7 +237,9 @@ impl CampaignFile {
                     .into(),
             )
         })?;
-        let id = file.root_attr(layout::attr::CAMPAIGN_ID).unwrap_or_default();
+        let id = file
+            .root_attr(layout::attr::CAMPAIGN_ID)
+            .unwrap_or_default();
         let ds = |name: &str| file.dataset(name).map_err(err);
         let f64s = |name: &str| file.f64s(name).map_err(err);
         let i64s = |name: &str| file.i64s(name).map_err(err);
@@ -244,11 +247,7 @@ impl CampaignFile {
         let scalar_text = |name: &str| file.scalar_text(name).map_err(err);
         // before anything is allocated per variant of the campaign
         let limit = crate::model::Limits::from_env().map_err(err)?.variants;
-        let n_declared = ds(layout::VARIANTS)?
-            .shape()
-            .first()
-            .copied()
-            .unwrap_or(0);
+        let n_declared = ds(layout::VARIANTS)?.shape().first().copied().unwrap_or(0);
         if n_declared as u64 > limit {
             return Err(err(format!(
                 "/{}: {}",
@@ -264,11 +263,7 @@ impl CampaignFile {
         let definition = scalar_text(layout::DEFINITION)?;
         let varied = strings(layout::VARIED)?;
         let table = f64s(layout::VARIANTS)?;
-        let n_total = ds(layout::VARIANTS)?
-            .shape()
-            .first()
-            .copied()
-            .unwrap_or(0);
+        let n_total = ds(layout::VARIANTS)?.shape().first().copied().unwrap_or(0);
         let variants: Vec<Vec<f64>> = if varied.is_empty() {
             vec![Vec::new(); n_total]
         } else {

@@ -163,7 +163,11 @@ impl Reader {
     pub fn scalar_text(&self, name: &str) -> Result<String, String> {
         self.dataset(name)?
             .read_raw_bytes()
-            .map(|b| String::from_utf8_lossy(&b).trim_end_matches('\0').to_string())
+            .map(|b| {
+                String::from_utf8_lossy(&b)
+                    .trim_end_matches('\0')
+                    .to_string()
+            })
             .map_err(|e| format!("reading /{name}: {e}"))
     }
 
