@@ -16,9 +16,10 @@
 
 use std::path::{Path, PathBuf};
 
-use rust_hdf5::{H5Dataset, H5File};
+use rust_hdf5::H5Dataset;
 use sha2::{Digest, Sha256};
 
+use crate::output::layout::{self, Reader};
 use crate::output::{
     CampaignMeta, CampaignWriter, OutputError, OutputTarget, SensorMeta, VariantState,
     VariantStatus,
@@ -176,7 +177,7 @@ pub fn differences(a: &str, b: &str) -> Vec<String> {
 /// per-variant datasets (the sensor samples stay on disk).
 pub struct CampaignFile {
     pub path: PathBuf,
-    pub file: H5File,
+    pub file: Reader,
     pub info: CampaignInfo,
     pub model_source: String,
     pub model_path: String,
@@ -221,66 +222,36 @@ impl CampaignFile {
             return Err(err("no such file".into()));
         }
         let file =
-            H5File::open(path).map_err(|e| err(format!("not a readable HDF5 file ({e})")))?;
-        if file.attr_string("format").ok().as_deref() != Some("latdyn-campaign") {
+            Reader::open(path).map_err(|e| err(format!("not a readable HDF5 file ({e})")))?;
+        if file.root_attr(layout::attr::FORMAT).as_deref() != Some(layout::FORMAT) {
             return Err(err(
                 "not a latdyn campaign file (no root attribute format = \
                             \"latdyn-campaign\")"
                     .into(),
             ));
         }
-        let hash = file.attr_string("campaign_hash").map_err(|_| {
+        let hash = file.root_attr(layout::attr::CAMPAIGN_HASH).ok_or_else(|| {
             err(
                 "has no campaign identity (root attribute campaign_hash): only `sweep` files \
                  written by this latdyn version or later have one; rerun the sweep"
                     .into(),
             )
         })?;
-        let id = file.attr_string("campaign_id").unwrap_or_default();
-        let ds = |name: &str| {
-            file.dataset(name)
-                .map_err(|e| err(format!("no /{name} ({e})")))
-        };
-        let f64s = |name: &str| -> Result<Vec<f64>, ReadError> {
-            let d = ds(name)?;
-            if d.total_elements() == 0 {
-                return Ok(Vec::new());
-            }
-            d.read_raw::<f64>()
-                .map_err(|e| err(format!("reading /{name}: {e}")))
-        };
-        let i64s = |name: &str| -> Result<Vec<i64>, ReadError> {
-            let d = ds(name)?;
-            if d.total_elements() == 0 {
-                return Ok(Vec::new());
-            }
-            d.read_numeric_as::<i64>()
-                .map_err(|e| err(format!("reading /{name}: {e}")))
-        };
-        let strings = |name: &str| -> Result<Vec<String>, ReadError> {
-            let d = ds(name)?;
-            if d.total_elements() == 0 {
-                return Ok(Vec::new());
-            }
-            d.read_strings()
-                .map_err(|e| err(format!("reading /{name}: {e}")))
-        };
-        let scalar_text = |name: &str| -> Result<String, ReadError> {
-            ds(name)?
-                .read_raw_bytes()
-                .map(text)
-                .map_err(|e| err(format!("reading /{name}: {e}")))
-        };
+        let id = file
+            .root_attr(layout::attr::CAMPAIGN_ID)
+            .unwrap_or_default();
+        let ds = |name: &str| file.dataset(name).map_err(err);
+        let f64s = |name: &str| file.f64s(name).map_err(err);
+        let i64s = |name: &str| file.i64s(name).map_err(err);
+        let strings = |name: &str| file.strings(name).map_err(err);
+        let scalar_text = |name: &str| file.scalar_text(name).map_err(err);
         // before anything is allocated per variant of the campaign
         let limit = crate::model::Limits::from_env().map_err(err)?.variants;
-        let n_declared = ds("campaign/variants")?
-            .shape()
-            .first()
-            .copied()
-            .unwrap_or(0);
+        let n_declared = ds(layout::VARIANTS)?.shape().first().copied().unwrap_or(0);
         if n_declared as u64 > limit {
             return Err(err(format!(
-                "/campaign/variants: {}",
+                "/{}: {}",
+                layout::VARIANTS,
                 crate::model::limits::exceeded(
                     "variants of the campaign",
                     n_declared as f64,
@@ -289,26 +260,22 @@ impl CampaignFile {
                 )
             )));
         }
-        let definition = scalar_text("campaign/definition")?;
-        let varied = strings("campaign/varied")?;
-        let table = f64s("campaign/variants")?;
-        let n_total = ds("campaign/variants")?
-            .shape()
-            .first()
-            .copied()
-            .unwrap_or(0);
+        let definition = scalar_text(layout::DEFINITION)?;
+        let varied = strings(layout::VARIED)?;
+        let table = f64s(layout::VARIANTS)?;
+        let n_total = ds(layout::VARIANTS)?.shape().first().copied().unwrap_or(0);
         let variants: Vec<Vec<f64>> = if varied.is_empty() {
             vec![Vec::new(); n_total]
         } else {
             table.chunks(varied.len()).map(<[f64]>::to_vec).collect()
         };
-        let set: Vec<(String, f64)> = strings("campaign/set_names")?
+        let set: Vec<(String, f64)> = strings(layout::SET_NAMES)?
             .into_iter()
-            .zip(f64s("campaign/set_values")?)
+            .zip(f64s(layout::SET_VALUES)?)
             .collect();
-        let parameter_names = strings("parameters/names")?;
-        let values = f64s("parameters/values")?;
-        let global_index: Vec<usize> = i64s("status/global_index")?
+        let parameter_names = strings(layout::PARAMETER_NAMES)?;
+        let values = f64s(layout::PARAMETER_VALUES)?;
+        let global_index: Vec<usize> = i64s(layout::GLOBAL_INDEX)?
             .into_iter()
             .map(|g| usize::try_from(g).unwrap_or(usize::MAX))
             .collect();
@@ -342,14 +309,14 @@ impl CampaignFile {
             }
             Ok(v)
         };
-        let state = i64s("status/state")?;
-        let message = strings("status/message")?;
-        let warnings = strings("status/warnings")?;
-        let steps = i64s("status/steps")?;
-        let rejected = i64s("status/rejected_steps")?;
-        let (t_fail, wall_s) = (col("status/t_fail")?, col("status/wall_s")?);
-        let (growth, loss) = (col("status/energy_growth")?, col("status/energy_loss")?);
-        let tee = col("status/time_error_estimate")?;
+        let state = i64s(layout::STATE)?;
+        let message = strings(layout::MESSAGE)?;
+        let warnings = strings(layout::WARNINGS)?;
+        let steps = i64s(layout::STEPS)?;
+        let rejected = i64s(layout::REJECTED_STEPS)?;
+        let (t_fail, wall_s) = (col(layout::T_FAIL)?, col(layout::WALL_S)?);
+        let (growth, loss) = (col(layout::ENERGY_GROWTH)?, col(layout::ENERGY_LOSS)?);
+        let tee = col(layout::TIME_ERROR_ESTIMATE)?;
         if [
             state.len(),
             message.len(),
@@ -380,16 +347,11 @@ impl CampaignFile {
                 warnings: warnings[v].clone(),
             });
         }
-        let root = file.root_group();
         let mut derived = Vec::new();
-        if let Ok(g) = root.group("derived") {
-            let mut names = g.dataset_names().unwrap_or_default();
-            names.sort();
-            for n in names {
-                derived.push((n.clone(), col(&format!("derived/{n}"))?));
-            }
+        for n in file.names_in(layout::DERIVED) {
+            derived.push((n.clone(), col(&layout::derived(&n))?));
         }
-        let has_verification = root.group("verification").is_ok();
+        let has_verification = file.has_group(layout::VERIFICATION);
         Ok(CampaignFile {
             path: path.to_path_buf(),
             info: CampaignInfo {
@@ -400,14 +362,14 @@ impl CampaignFile {
                 variants,
                 set,
             },
-            model_source: scalar_text("model/source")?,
-            model_path: scalar_text("model/path")?,
-            backend: file.attr_string("backend").unwrap_or_default(),
-            precision: file.attr_string("precision").unwrap_or_default(),
-            adapter: file.attr_string("adapter").unwrap_or_default(),
+            model_source: scalar_text(layout::MODEL_SOURCE)?,
+            model_path: scalar_text(layout::MODEL_PATH)?,
+            backend: file.root_attr(layout::attr::BACKEND).unwrap_or_default(),
+            precision: file.root_attr(layout::attr::PRECISION).unwrap_or_default(),
+            adapter: file.root_attr(layout::attr::ADAPTER).unwrap_or_default(),
             parameter_names,
             parameter_values,
-            time: f64s("time")?,
+            time: f64s(layout::TIME)?,
             global_index,
             status,
             derived,
@@ -419,7 +381,8 @@ impl CampaignFile {
     /// The `/sensors/<name>` dataset.
     pub fn sensor(&self, name: &str) -> Result<H5Dataset, ReadError> {
         self.file
-            .dataset(&format!("sensors/{name}"))
+            .file()
+            .dataset(&layout::sensor(name))
             .map_err(|e| ReadError {
                 path: self.path.clone(),
                 message: format!("no /sensors/{name} ({e})"),
@@ -441,7 +404,8 @@ impl CampaignFile {
         };
         let ds = |name: &str| {
             self.file
-                .dataset(&format!("verification/{name}"))
+                .file()
+                .dataset(&format!("{}/{name}", layout::VERIFICATION))
                 .map_err(|e| err(format!("no /verification/{name} ({e})")))
         };
         let f64s = |name: &str| -> Result<Vec<f64>, ReadError> {

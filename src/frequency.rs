@@ -20,6 +20,9 @@
 //! `ambiguous spectrum`, `disagrees with the eigenvalue`, `no modal prior`, `short record`):
 //! a number that differs from the eigenvalue by more than [`AGREE`] never goes out without
 //! one.
+//!
+//! [`campbell_crossings`]: where the rotor harmonics n·Ω cross a frequency-against-speed
+//! curve (the resonances of a Campbell diagram).
 
 use crate::model::Model;
 use crate::signal::{dominant_frequency, Spectrum};
@@ -313,4 +316,44 @@ pub fn warning_kind(w: &str) -> String {
         return "energy balance that grew (probably unstable; reduce dt or lower rho_inf)".into();
     }
     w.split(':').next().unwrap_or(w).to_string()
+}
+
+/// Where the rotor harmonics n·Ω (n = 1..=`n_max`) cross the curve through the points
+/// (`x` = Ω, `y` = frequency, both in rad/s, or both in any one unit), the curve being
+/// linear between points (sorted by x; non-finite points skipped).
+///
+/// Returns (n, Ω) sorted by n, then Ω. A point of the curve lying exactly on n·Ω counts
+/// once; Ω = 0 is never a crossing (a zero frequency at rest is not a resonance).
+pub fn campbell_crossings(x: &[f64], y: &[f64], n_max: usize) -> Vec<(usize, f64)> {
+    let mut pts: Vec<(f64, f64)> = x
+        .iter()
+        .zip(y)
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(&a, &b)| (a, b))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out = Vec::new();
+    for n in 1..=n_max {
+        let nf = n as f64;
+        let g = |p: (f64, f64)| p.1 - nf * p.0;
+        for w in pts.windows(2) {
+            let (g0, g1) = (g(w[0]), g(w[1]));
+            let at = if g0 == 0.0 {
+                Some(w[0].0)
+            } else if g0 * g1 < 0.0 {
+                Some(w[0].0 + g0 / (g0 - g1) * (w[1].0 - w[0].0))
+            } else {
+                None
+            };
+            if let Some(om) = at.filter(|&om| om != 0.0) {
+                out.push((n, om));
+            }
+        }
+        if let Some(&last) = pts.last() {
+            if g(last) == 0.0 && last.0 != 0.0 {
+                out.push((n, last.0));
+            }
+        }
+    }
+    out
 }

@@ -11,7 +11,6 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
-pub mod bench;
 pub mod campaign;
 pub mod element;
 pub mod ensemble;
@@ -22,7 +21,6 @@ pub mod linalg;
 pub mod math;
 pub mod model;
 pub mod output;
-pub mod plot;
 pub mod sensors;
 pub mod signal;
 pub mod solver;

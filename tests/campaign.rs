@@ -396,8 +396,30 @@ fn merged_campaign_opens_in_xarray_with_named_dimensions_and_parameter_coordinat
         s(&merged),
     ]));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    // omega = 3.1 is nearest to the grid value 3 (variant 4); shard 2/2 has it too
-    for file in [&merged, &shards[1]] {
+    // two varied parameters in a table out of order: the axis stays `variant`, and omega
+    // is a coordinate on it (set_xindex, then sel)
+    let table = dir.join("table.csv");
+    std::fs::write(&table, "omega,EI\n3,1\n1,1.2\n5,0.9\n").unwrap();
+    let from_table = dir.join("t.h5");
+    let o = run(latdyn(&[
+        "sweep",
+        "models/rotating_cantilever.toml",
+        "--variants",
+        s(&table),
+        "--set",
+        "t_end=0.3",
+        "-o",
+        s(&from_table),
+    ]));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // omega = 3.1 is nearest to the grid value 3 (variant 4); shard 2/2 has it too; the
+    // --vary range names the axis `omega`, so `ds.sel(omega=3.1, method="nearest")` works
+    // as it stands
+    for (file, axis) in [
+        (&merged, "omega"),
+        (&shards[1], "omega"),
+        (&from_table, "variant"),
+    ] {
         let out = Command::new("python3")
             .args(["-W", "ignore"])
             .arg(root().join("tests/xarray_campaign.py"))
@@ -406,7 +428,8 @@ fn merged_campaign_opens_in_xarray_with_named_dimensions_and_parameter_coordinat
             .output()
             .unwrap();
         assert!(
-            out.status.success() && String::from_utf8_lossy(&out.stdout).trim_end() == "OK",
+            out.status.success()
+                && String::from_utf8_lossy(&out.stdout).trim_end() == format!("OK {axis}"),
             "{}: {}{}",
             file.display(),
             String::from_utf8_lossy(&out.stdout),

@@ -3,6 +3,7 @@
 
 mod common;
 use common::*;
+use latdyn::frequency::campbell_crossings;
 use latdyn::solver::rotating::{find_spin, rotating_modes_with_shapes, RIGID_DEFORMATION};
 use std::f64::consts::PI;
 
@@ -245,4 +246,55 @@ fn a_mode_the_release_does_not_excite_gives_nan_and_a_not_excited_warning() {
         err.contains("1 variant(s): first_bending_hz: not excited"),
         "{err}"
     );
+}
+
+// ---------------------------------------------------------------------------------------
+// campbell_crossings: where the rotor harmonics n·Ω cross a Campbell curve
+
+#[test]
+fn crossings_of_a_southwell_curve() {
+    // y = sqrt(4 + 6.4 x²) crosses n·x where n² x² = 4 + 6.4 x², i.e. for n² > 6.4:
+    // x = sqrt(4 / (n² - 6.4)); 1x and 2x never.
+    let x: Vec<f64> = (0..=300).map(|i| 0.01 * i as f64).collect();
+    let y: Vec<f64> = x.iter().map(|&x| (4.0 + 6.4 * x * x).sqrt()).collect();
+    let c = campbell_crossings(&x, &y, 6);
+    let ns: Vec<usize> = c.iter().map(|c| c.0).collect();
+    assert_eq!(ns, [3, 4, 5, 6]);
+    for &(n, om) in &c {
+        let exact = (4.0 / ((n * n) as f64 - 6.4)).sqrt();
+        assert!((om - exact).abs() < 1e-4, "{n}: {om} vs {exact}");
+    }
+    assert!((c[0].1 - (4.0f64 / 2.6).sqrt()).abs() < 1e-4);
+    assert!((c[1].1 - (4.0f64 / 9.6).sqrt()).abs() < 1e-4);
+
+    // Coarse grid: exact for the piecewise-linear curve through the points.
+    let x = [0.0, 1.0, 2.0];
+    let y = [2.0, 2.5, 3.0];
+    // 1x: g = 2, 1.5, 1, never; 2x: g = 2, 0.5, -1, between 1 and 2 at 1 + 0.5/1.5.
+    let c = campbell_crossings(&x, &y, 2);
+    assert_eq!(c.len(), 1, "{c:?}");
+    assert_eq!(c[0].0, 2);
+    assert!((c[0].1 - (1.0 + 0.5 / 1.5)).abs() < 1e-12, "{c:?}");
+}
+
+#[test]
+fn crossings_edge_cases() {
+    // Unsorted input with NaN points is sorted and filtered.
+    let x = [2.0, f64::NAN, 0.0, 1.0, 3.0];
+    let y = [3.0, 1.0, 2.0, 2.5, f64::NAN];
+    let c = campbell_crossings(&x, &y, 2);
+    assert_eq!(c.iter().map(|c| c.0).collect::<Vec<_>>(), [2]);
+    assert!((c[0].1 - 4.0 / 3.0).abs() < 1e-12);
+
+    // A data point exactly on a harmonic counts once (here also the last point).
+    let c = campbell_crossings(&[1.0, 2.0, 3.0], &[3.0, 4.0, 5.0], 2);
+    assert_eq!(c, [(2, 2.0)]);
+    let c = campbell_crossings(&[1.0, 2.0], &[3.0, 4.0], 2);
+    assert_eq!(c, [(2, 2.0)]);
+
+    // Ω = 0 with zero frequency is no crossing; empty and single-point inputs give none.
+    assert!(campbell_crossings(&[0.0, 1.0], &[0.0, 0.5], 3).is_empty());
+    assert!(campbell_crossings(&[], &[], 6).is_empty());
+    assert!(campbell_crossings(&[1.0], &[1.0], 0).is_empty());
+    assert_eq!(campbell_crossings(&[1.0], &[1.0], 1), [(1, 1.0)]);
 }

@@ -733,7 +733,7 @@ fn panics_become_one_clean_line_and_exit_70() {
         let first = err.lines().next().unwrap_or_default();
         assert!(
             first.starts_with("error: internal error: injected panic")
-                && first.contains(" at src/main.rs:")
+                && first.contains(" at src/bin/latdyn/")
                 && first.ends_with("(this is a bug in latdyn; please report it)"),
             "{site}: {err}"
         );

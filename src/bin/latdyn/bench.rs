@@ -17,9 +17,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::ensemble::{self, Campaign};
-use crate::model::{load, Model};
-use crate::solver::{self, dynamics};
+use latdyn::ensemble::{self, Campaign};
+use latdyn::model::{load, Model};
+use latdyn::solver::{self, dynamics};
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -446,7 +446,7 @@ fn rotating_cantilever(
             .collect();
         // the record after the pulse, below the second flap mode (ω̄₂ ≈ 26 at Ω̄ = 5)
         let skip = h.t.iter().take_while(|t| **t < 0.1).count();
-        let f = crate::signal::dominant_frequency(&x[skip..], h.t[1] - h.t[0], 0.3, 3.0)
+        let f = latdyn::signal::dominant_frequency(&x[skip..], h.t[1] - h.t[0], 0.3, 3.0)
             .ok_or_else(|| run_err(P, "no spectral peak in the tip response"))?;
         Ok((f, stats, wall))
     })?;

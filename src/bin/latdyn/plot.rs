@@ -7,24 +7,21 @@
 //! - a Campbell diagram ([`plot_campbell`]): a derived frequency of each variant against
 //!   a parameter (rotor speed Ω in rad/s), with the rotor harmonics n·Ω, an optional
 //!   Southwell curve and the crossings of the data with the harmonics
-//!   ([`campbell_crossings`]).
+//!   ([`latdyn::frequency::campbell_crossings`]).
 //!
 //! Drawing uses `plotters` with the DejaVu Sans font embedded in the binary (registered
 //! with plotters' `ab_glyph` text renderer), so PNG text is the same on every machine and
 //! no system font library is needed. The image format follows the output extension.
 
-use std::collections::HashMap;
 use std::fs;
-use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 
+use latdyn::frequency::campbell_crossings;
+use latdyn::output::layout::{self, Reader};
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
-use rust_hdf5::format::global_heap::{decode_vlen_reference, GlobalHeapCollection};
-use rust_hdf5::format::FormatContext;
-use rust_hdf5::{DatatypeMessage, H5Dataset, H5File};
 
 /// Most lines drawn in one time-history or cross plot: beyond this a legend is unreadable.
 pub const MAX_LINES: usize = 20;
@@ -255,46 +252,6 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), PlotError> {
     Ok((w, h))
 }
 
-/// Where the rotor harmonics n·Ω (n = 1..=`n_max`) cross the curve through the points
-/// (`x` = Ω, `y` = frequency, both in rad/s, or both in any one unit), the curve being
-/// linear between points (sorted by x; non-finite points skipped).
-///
-/// Returns (n, Ω) sorted by n, then Ω. A point of the curve lying exactly on n·Ω counts
-/// once; Ω = 0 is never a crossing (a zero frequency at rest is not a resonance).
-pub fn campbell_crossings(x: &[f64], y: &[f64], n_max: usize) -> Vec<(usize, f64)> {
-    let mut pts: Vec<(f64, f64)> = x
-        .iter()
-        .zip(y)
-        .filter(|(a, b)| a.is_finite() && b.is_finite())
-        .map(|(&a, &b)| (a, b))
-        .collect();
-    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut out = Vec::new();
-    for n in 1..=n_max {
-        let nf = n as f64;
-        let g = |p: (f64, f64)| p.1 - nf * p.0;
-        for w in pts.windows(2) {
-            let (g0, g1) = (g(w[0]), g(w[1]));
-            let at = if g0 == 0.0 {
-                Some(w[0].0)
-            } else if g0 * g1 < 0.0 {
-                Some(w[0].0 + g0 / (g0 - g1) * (w[1].0 - w[0].0))
-            } else {
-                None
-            };
-            if let Some(om) = at.filter(|&om| om != 0.0) {
-                out.push((n, om));
-            }
-        }
-        if let Some(&last) = pts.last() {
-            if g(last) == 0.0 && last.0 != 0.0 {
-                out.push((n, last.0));
-            }
-        }
-    }
-    out
-}
-
 /// A sensor dataset's description (`/sensors/<NAME>` and its attributes).
 #[derive(Clone, Debug)]
 pub struct SensorInfo {
@@ -331,7 +288,7 @@ fn with_unit(name: &str, unit: &str) -> String {
 /// An open results file.
 pub struct Campaign {
     path: PathBuf,
-    file: H5File,
+    reader: Reader,
     /// The model path stored in the file (empty if none).
     pub model_path: String,
     pub time: Vec<f64>,
@@ -357,33 +314,30 @@ impl Campaign {
         if path.is_dir() {
             return Err(err("is a directory, not a results file".into()));
         }
-        let file = H5File::open(path)
+        let reader = Reader::open(path)
             .map_err(|e| err(format!("not a readable HDF5 results file ({e})")))?;
-        let time_ds = file.dataset("time").map_err(|_| {
+        let time_ds = reader.file().dataset(layout::TIME).map_err(|_| {
             err("not a latdyn results file (no /time dataset; `run -o FILE.h5` writes one)".into())
         })?;
         let time = time_ds
             .read_raw::<f64>()
             .map_err(|e| err(format!("reading /time: {e}")))?;
         let time_units = time_ds
-            .attr("units")
+            .attr(layout::attr::UNITS)
             .and_then(|a| a.read_string())
             .unwrap_or_else(|_| "s".into());
-        let parameter_names = match file.dataset("parameters/names") {
+        let parameter_names = match reader.file().dataset(layout::PARAMETER_NAMES) {
             Ok(ds) => ds
                 .read_strings()
                 .map_err(|e| err(format!("reading /parameters/names: {e}")))?,
             Err(_) => Vec::new(),
         };
-        let n_sensor_variants = file
-            .root_group()
-            .group("sensors")
-            .ok()
-            .and_then(|g| g.dataset_names().ok())
-            .and_then(|names| names.first().cloned())
-            .and_then(|n| file.dataset(&format!("sensors/{n}")).ok())
+        let n_sensor_variants = reader
+            .names_in(layout::SENSORS)
+            .first()
+            .and_then(|n| reader.file().dataset(&layout::sensor(n)).ok())
             .and_then(|ds| ds.shape().first().copied());
-        let parameter_values = match file.dataset("parameters/values") {
+        let parameter_values = match reader.file().dataset(layout::PARAMETER_VALUES) {
             Ok(ds) => {
                 let shape = ds.shape();
                 let raw = ds
@@ -405,24 +359,17 @@ impl Campaign {
             Err(_) => vec![Vec::new(); n_sensor_variants.unwrap_or(0)],
         };
         let n_variants = parameter_values.len();
-        let states = file
-            .dataset("status/state")
-            .and_then(|ds| ds.read_numeric_as::<i64>())
+        let states = reader
+            .i64s(layout::STATE)
             .map(|v| v.into_iter().map(|x| x as i32).collect())
             .unwrap_or_default();
-        let model_path = file
-            .dataset("model/path")
-            .and_then(|ds| ds.read_raw_bytes())
-            .map(|b| {
-                String::from_utf8_lossy(&b)
-                    .trim_end_matches('\0')
-                    .trim()
-                    .to_string()
-            })
+        let model_path = reader
+            .scalar_text(layout::MODEL_PATH)
+            .map(|t| t.trim().to_string())
             .unwrap_or_default();
         Ok(Campaign {
             path: path.to_path_buf(),
-            file,
+            reader,
             model_path,
             time,
             time_units,
@@ -431,11 +378,6 @@ impl Campaign {
             n_variants,
             states,
         })
-    }
-
-    /// Path of the file.
-    pub fn path(&self) -> &Path {
-        &self.path
     }
 
     fn err(&self, message: String) -> PlotError {
@@ -457,26 +399,14 @@ impl Campaign {
         }
     }
 
-    fn group_names(&self, group: &str) -> Vec<String> {
-        let mut v = self
-            .file
-            .root_group()
-            .group(group)
-            .ok()
-            .and_then(|g| g.dataset_names().ok())
-            .unwrap_or_default();
-        v.sort();
-        v
-    }
-
     /// Names of the `/sensors` datasets.
     pub fn sensor_names(&self) -> Vec<String> {
-        self.group_names("sensors")
+        self.reader.names_in(layout::SENSORS)
     }
 
     /// Names of the `/derived` datasets.
     pub fn derived_names(&self) -> Vec<String> {
-        self.group_names("derived")
+        self.reader.names_in(layout::DERIVED)
     }
 
     /// A sensor's components and units (from its attributes; `c0`, `c1`, … and no units
@@ -490,27 +420,18 @@ impl Campaign {
             )));
         }
         let ds = self.sensor_dataset(name)?;
-        let n_comp = ds.shape().get(2).copied().unwrap_or(1);
-        let mut components = self
-            .string_array_attr(&ds, "components")
-            .unwrap_or_default();
-        if components.len() != n_comp {
-            components = (0..n_comp).map(|c| format!("c{c}")).collect();
-        }
-        let mut units = self.string_array_attr(&ds, "units").unwrap_or_default();
-        if units.len() != n_comp {
-            units = vec![String::new(); n_comp];
-        }
+        let m = self.reader.sensor_meta(name, &ds);
         Ok(SensorInfo {
-            name: name.to_string(),
-            components,
-            units,
+            name: m.name,
+            components: m.components,
+            units: m.units,
         })
     }
 
-    fn sensor_dataset(&self, name: &str) -> Result<H5Dataset, PlotError> {
-        self.file
-            .dataset(&format!("sensors/{name}"))
+    fn sensor_dataset(&self, name: &str) -> Result<layout::Dataset, PlotError> {
+        self.reader
+            .file()
+            .dataset(&layout::sensor(name))
             .map_err(|e| self.err(format!("reading /sensors/{name}: {e}")))
     }
 
@@ -596,8 +517,9 @@ impl Campaign {
                 list_or_none(&names)
             )));
         }
-        self.file
-            .dataset(&format!("derived/{name}"))
+        self.reader
+            .file()
+            .dataset(&layout::derived(name))
             .and_then(|ds| ds.read_raw::<f64>())
             .map_err(|e| self.err(format!("reading /derived/{name}: {e}")))
     }
@@ -700,92 +622,6 @@ impl Campaign {
             self.n_variants
         ));
         Ok(picked)
-    }
-
-    /// A string-array attribute of a dataset (variable-length or fixed-length strings).
-    ///
-    /// rust-hdf5 0.7 reads only scalar string attributes, so variable-length arrays are
-    /// decoded here: the attribute holds one global-heap reference per element.
-    fn string_array_attr(&self, ds: &H5Dataset, name: &str) -> Option<Vec<String>> {
-        let attr = ds.attr(name).ok()?;
-        let raw = attr.read_raw().ok()?;
-        match attr.datatype().ok()? {
-            DatatypeMessage::FixedString { size, .. } => {
-                let size = (size as usize).max(1);
-                Some(
-                    raw.chunks(size)
-                        .map(|c| {
-                            String::from_utf8_lossy(c)
-                                .trim_end_matches(['\0', ' '])
-                                .to_string()
-                        })
-                        .collect(),
-                )
-            }
-            DatatypeMessage::VarLenString { .. } => self.vlen_strings(&raw).ok(),
-            _ => None,
-        }
-    }
-
-    /// Resolve variable-length string references through the file's global heap.
-    fn vlen_strings(&self, raw: &[u8]) -> std::io::Result<Vec<String>> {
-        let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, m.to_string());
-        let base = self.file.userblock_size();
-        let mut f = fs::File::open(&self.path)?;
-        let mut sb = [0u8; 16];
-        f.seek(SeekFrom::Start(base))?;
-        f.read_exact(&mut sb)?;
-        if &sb[..8] != b"\x89HDF\r\n\x1a\n" {
-            return Err(bad("no superblock signature"));
-        }
-        let (sizeof_addr, sizeof_size) = match sb[8] {
-            0 | 1 => (sb[13], sb[14]),
-            _ => (sb[9], sb[10]),
-        };
-        let ctx = FormatContext {
-            sizeof_addr,
-            sizeof_size,
-        };
-        let ref_size = 4 + sizeof_addr as usize + 4;
-        let ss = sizeof_size as usize;
-        let mut heaps: HashMap<u64, GlobalHeapCollection> = HashMap::new();
-        let mut out = Vec::with_capacity(raw.len() / ref_size);
-        for r in raw.chunks_exact(ref_size) {
-            let (_len, addr, index) =
-                decode_vlen_reference(r, &ctx).map_err(|e| bad(&e.to_string()))?;
-            if addr == 0 || addr == u64::MAX {
-                out.push(String::new());
-                continue;
-            }
-            if let std::collections::hash_map::Entry::Vacant(e) = heaps.entry(addr) {
-                let mut head = vec![0u8; 8 + ss];
-                f.seek(SeekFrom::Start(base + addr))?;
-                f.read_exact(&mut head)?;
-                if &head[..4] != b"GCOL" {
-                    return Err(bad("bad global heap signature"));
-                }
-                let mut n = 0u64;
-                for (i, b) in head[8..8 + ss].iter().enumerate() {
-                    n |= u64::from(*b) << (8 * i);
-                }
-                let size = usize::try_from(n).map_err(|_| bad("heap size"))?;
-                if !(16..=1 << 30).contains(&size) {
-                    return Err(bad("implausible global heap size"));
-                }
-                let mut buf = vec![0u8; size];
-                f.seek(SeekFrom::Start(base + addr))?;
-                f.read_exact(&mut buf)?;
-                let (coll, _) =
-                    GlobalHeapCollection::decode(&buf, &ctx).map_err(|e| bad(&e.to_string()))?;
-                e.insert(coll);
-            }
-            let idx = u16::try_from(index).map_err(|_| bad("heap index"))?;
-            let obj = heaps[&addr]
-                .get_object(idx)
-                .ok_or_else(|| bad("missing heap object"))?;
-            out.push(String::from_utf8_lossy(obj).into_owned());
-        }
-        Ok(out)
     }
 }
 

@@ -66,6 +66,12 @@
 //! /xarray/<DERIVED>, /xarray/state   hard links to /derived/*, /status/state (variant)
 //! ```
 //!
+//! When the campaign varies one parameter whose values are strictly monotonic in global
+//! index order (a `--vary` range; see [`xarray_axis`]), that parameter names the variant
+//! axis instead: `/xarray/<PARAM>` is the dimension scale `<PARAM>`, and
+//! `/xarray/variant` (the global indices) a coordinate on it (attr coordinates =
+//! `variant`), so `sel(<PARAM>=..., method="nearest")` needs no `set_xindex`.
+//!
 //! Attaching the scales gives /sensors/*, /derived/* and /status/state a
 //! `DIMENSION_LIST` attribute (and `coordinates`); the samples are not copied.
 //!
@@ -134,6 +140,10 @@
 //!
 //! Every write is a complete file at a temporary path in the same directory, renamed
 //! over the target (atomic on POSIX file systems).
+
+pub mod layout;
+
+use layout::{attr, leaf};
 
 use std::fs;
 use std::io;
@@ -212,6 +222,31 @@ pub struct CampaignMeta {
     pub sensors: Vec<SensorMeta>,
 }
 
+impl CampaignMeta {
+    /// The layout of one run of `m` (`run -o`): a single variant holding the model's
+    /// parameters, global index 0, on the model's output grid, one thread.
+    pub fn single_run(
+        m: &crate::model::Model,
+        stage: &crate::ensemble::Stage,
+        command_line: String,
+    ) -> CampaignMeta {
+        CampaignMeta {
+            command_line,
+            model_path: m.path.clone(),
+            model_source: m.source.clone(),
+            backend: stage.backend.clone(),
+            precision: stage.precision.clone(),
+            adapter: stage.adapter.clone(),
+            threads: 1,
+            parameter_names: m.params.iter().map(|(n, _)| n.clone()).collect(),
+            parameter_values: vec![m.params.iter().map(|(_, v)| *v).collect()],
+            global_index: vec![0],
+            time: crate::solver::dynamics::output_times(m),
+            sensors: SensorMeta::of_model(m),
+        }
+    }
+}
+
 /// Outcome of one variant, stored under `/status`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VariantStatus {
@@ -245,6 +280,32 @@ impl Default for VariantStatus {
             energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
             warnings: String::new(),
+        }
+    }
+}
+
+impl VariantStatus {
+    /// The status of a variant that ended in `state` after a run with these statistics
+    /// (`t_fail` NaN unless it failed or was interrupted; `warnings` one per line).
+    pub fn of_run(
+        state: VariantState,
+        message: String,
+        t_fail: f64,
+        stats: &crate::solver::dynamics::RunStats,
+        wall_s: f64,
+        warnings: String,
+    ) -> VariantStatus {
+        VariantStatus {
+            state,
+            message,
+            t_fail,
+            steps: stats.steps as u64,
+            rejected_steps: stats.rejected_steps as u64,
+            wall_s,
+            energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+            energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
+            time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
+            warnings,
         }
     }
 }
@@ -1148,63 +1209,77 @@ impl CampaignWriter {
         let nv = self.n_variants;
 
         // Root attributes.
-        file.set_attr_string("latdyn_version", env!("CARGO_PKG_VERSION"))
+        file.set_attr_string(attr::LATDYN_VERSION, env!("CARGO_PKG_VERSION"))
             .map_err(h5("root attrs"))?;
-        file.set_attr_string("command_line", &m.command_line)
+        file.set_attr_string(attr::COMMAND_LINE, &m.command_line)
             .map_err(h5("root attrs"))?;
-        file.set_attr_string("backend", &m.backend)
+        file.set_attr_string(attr::BACKEND, &m.backend)
             .map_err(h5("root attrs"))?;
-        file.set_attr_string("precision", &m.precision)
+        file.set_attr_string(attr::PRECISION, &m.precision)
             .map_err(h5("root attrs"))?;
-        file.set_attr_string("adapter", &m.adapter)
+        file.set_attr_string(attr::ADAPTER, &m.adapter)
             .map_err(h5("root attrs"))?;
-        file.set_attr_numeric("threads", &(m.threads as i64))
+        file.set_attr_numeric(attr::THREADS, &(m.threads as i64))
             .map_err(h5("root attrs"))?;
-        file.set_attr_numeric("complete", &i64::from(status == "complete"))
+        file.set_attr_numeric(attr::COMPLETE, &i64::from(status == "complete"))
             .map_err(h5("root attrs"))?;
-        file.set_attr_string("status", status)
+        file.set_attr_string(attr::STATUS, status)
             .map_err(h5("root attrs"))?;
         let failed = self
             .status
             .iter()
             .filter(|s| s.state == VariantState::Failed)
             .count();
-        file.set_attr_numeric("failed_variants", &(failed as i64))
+        file.set_attr_numeric(attr::FAILED_VARIANTS, &(failed as i64))
             .map_err(h5("root attrs"))?;
-        file.set_attr_string("format", "latdyn-campaign")
+        file.set_attr_string(attr::FORMAT, layout::FORMAT)
             .map_err(h5("root attrs"))?;
-        file.set_attr_numeric("format_version", &FORMAT_VERSION)
+        file.set_attr_numeric(attr::FORMAT_VERSION, &FORMAT_VERSION)
             .map_err(h5("root attrs"))?;
 
         // /model
-        let model = file.create_group("model").map_err(h5("/model"))?;
-        write_scalar_string(&model, "source", &m.model_source).map_err(h5("/model/source"))?;
-        write_scalar_string(&model, "path", &m.model_path).map_err(h5("/model/path"))?;
+        let model = file
+            .create_group(layout::MODEL)
+            .map_err(h5(&slash(layout::MODEL)))?;
+        write_scalar_string(&model, leaf(layout::MODEL_SOURCE), &m.model_source)
+            .map_err(h5(&slash(layout::MODEL_SOURCE)))?;
+        write_scalar_string(&model, leaf(layout::MODEL_PATH), &m.model_path)
+            .map_err(h5(&slash(layout::MODEL_PATH)))?;
 
         // /parameters
-        let params = file.create_group("parameters").map_err(h5("/parameters"))?;
+        let params = file
+            .create_group(layout::PARAMETERS)
+            .map_err(h5(&slash(layout::PARAMETERS)))?;
         let names: Vec<&str> = m.parameter_names.iter().map(String::as_str).collect();
-        write_strings(&params, "names", &names).map_err(h5("/parameters/names"))?;
+        write_strings(&params, leaf(layout::PARAMETER_NAMES), &names)
+            .map_err(h5(&slash(layout::PARAMETER_NAMES)))?;
         let values: Vec<f64> = m.parameter_values.iter().flatten().copied().collect();
-        write_f64(&params, "values", &[nv, names.len()], &values)
-            .map_err(h5("/parameters/values"))?;
+        write_f64(
+            &params,
+            leaf(layout::PARAMETER_VALUES),
+            &[nv, names.len()],
+            &values,
+        )
+        .map_err(h5(&slash(layout::PARAMETER_VALUES)))?;
 
         // /time
         let time = file
             .new_dataset::<f64>()
             .shape([self.n_time])
-            .create("time")
-            .map_err(h5("/time"))?;
+            .create(layout::TIME)
+            .map_err(h5(&slash(layout::TIME)))?;
         if self.n_time > 0 {
-            time.write_raw(&m.time).map_err(h5("/time"))?;
+            time.write_raw(&m.time).map_err(h5(&slash(layout::TIME)))?;
         }
-        set_ds_string_attr(&time, "units", "s").map_err(h5("/time"))?;
+        set_ds_string_attr(&time, attr::UNITS, "s").map_err(h5(&slash(layout::TIME)))?;
 
         // /sensors
-        let sensors = file.create_group("sensors").map_err(h5("/sensors"))?;
+        let sensors = file
+            .create_group(layout::SENSORS)
+            .map_err(h5(&slash(layout::SENSORS)))?;
         let mut datasets = Vec::with_capacity(self.sensors.len());
         for s in &self.sensors {
-            let what = format!("/sensors/{}", s.meta.name);
+            let what = slash(&layout::sensor(&s.meta.name));
             let shape = [nv, self.n_time, s.n_comp];
             let b = sensors
                 .new_dataset::<f64>()
@@ -1229,8 +1304,8 @@ impl CampaignWriter {
             };
             let comps: Vec<&str> = s.meta.components.iter().map(String::as_str).collect();
             let units: Vec<&str> = s.meta.units.iter().map(String::as_str).collect();
-            set_ds_string_array_attr(&ds, "components", &comps).map_err(h5(&what))?;
-            set_ds_string_array_attr(&ds, "units", &units).map_err(h5(&what))?;
+            set_ds_string_array_attr(&ds, attr::COMPONENTS, &comps).map_err(h5(&what))?;
+            set_ds_string_array_attr(&ds, attr::UNITS, &units).map_err(h5(&what))?;
             datasets.push(ds);
         }
         if let Some(fill) = fill {
@@ -1240,56 +1315,81 @@ impl CampaignWriter {
         }
 
         // /status
-        let st = file.create_group("status").map_err(h5("/status"))?;
+        let st = file
+            .create_group(layout::STATUS)
+            .map_err(h5(&slash(layout::STATUS)))?;
         let codes: Vec<i32> = self.status.iter().map(|s| s.state.code()).collect();
         let state = st
             .new_dataset::<i32>()
             .shape([nv])
-            .create("state")
-            .map_err(h5("/status/state"))?;
+            .create(leaf(layout::STATE))
+            .map_err(h5(&slash(layout::STATE)))?;
         if nv > 0 {
-            state.write_raw(&codes).map_err(h5("/status/state"))?;
+            state.write_raw(&codes).map_err(h5(&slash(layout::STATE)))?;
         }
         let labels: Vec<&str> = VariantState::ALL.iter().map(|s| s.label()).collect();
-        set_ds_string_array_attr(&state, "labels", &labels).map_err(h5("/status/state"))?;
+        set_ds_string_array_attr(&state, attr::LABELS, &labels)
+            .map_err(h5(&slash(layout::STATE)))?;
         let messages: Vec<&str> = self.status.iter().map(|s| s.message.as_str()).collect();
-        write_strings(&st, "message", &messages).map_err(h5("/status/message"))?;
+        write_strings(&st, leaf(layout::MESSAGE), &messages)
+            .map_err(h5(&slash(layout::MESSAGE)))?;
         let col = |f: fn(&VariantStatus) -> f64| self.status.iter().map(f).collect::<Vec<_>>();
-        write_f64(&st, "t_fail", &[nv], &col(|s| s.t_fail)).map_err(h5("/status/t_fail"))?;
-        write_f64(&st, "wall_s", &[nv], &col(|s| s.wall_s)).map_err(h5("/status/wall_s"))?;
-        write_f64(&st, "energy_growth", &[nv], &col(|s| s.energy_growth))
-            .map_err(h5("/status/energy_growth"))?;
-        write_f64(&st, "energy_loss", &[nv], &col(|s| s.energy_loss))
-            .map_err(h5("/status/energy_loss"))?;
+        write_f64(&st, leaf(layout::T_FAIL), &[nv], &col(|s| s.t_fail))
+            .map_err(h5(&slash(layout::T_FAIL)))?;
+        write_f64(&st, leaf(layout::WALL_S), &[nv], &col(|s| s.wall_s))
+            .map_err(h5(&slash(layout::WALL_S)))?;
+        write_f64(
+            &st,
+            leaf(layout::ENERGY_GROWTH),
+            &[nv],
+            &col(|s| s.energy_growth),
+        )
+        .map_err(h5(&slash(layout::ENERGY_GROWTH)))?;
+        write_f64(
+            &st,
+            leaf(layout::ENERGY_LOSS),
+            &[nv],
+            &col(|s| s.energy_loss),
+        )
+        .map_err(h5(&slash(layout::ENERGY_LOSS)))?;
         write_f64(
             &st,
             "time_error_estimate",
             &[nv],
             &col(|s| s.time_error_estimate),
         )
-        .map_err(h5("/status/time_error_estimate"))?;
+        .map_err(h5(&slash(layout::TIME_ERROR_ESTIMATE)))?;
         let warnings: Vec<&str> = self.status.iter().map(|s| s.warnings.as_str()).collect();
-        write_strings(&st, "warnings", &warnings).map_err(h5("/status/warnings"))?;
+        write_strings(&st, leaf(layout::WARNINGS), &warnings)
+            .map_err(h5(&slash(layout::WARNINGS)))?;
         let icol = |f: fn(&VariantStatus) -> u64| {
             self.status
                 .iter()
                 .map(|s| i64::try_from(f(s)).unwrap_or(i64::MAX))
                 .collect::<Vec<_>>()
         };
-        write_i64(&st, "steps", &icol(|s| s.steps)).map_err(h5("/status/steps"))?;
-        write_i64(&st, "rejected_steps", &icol(|s| s.rejected_steps))
-            .map_err(h5("/status/rejected_steps"))?;
+        write_i64(&st, leaf(layout::STEPS), &icol(|s| s.steps))
+            .map_err(h5(&slash(layout::STEPS)))?;
+        write_i64(
+            &st,
+            leaf(layout::REJECTED_STEPS),
+            &icol(|s| s.rejected_steps),
+        )
+        .map_err(h5(&slash(layout::REJECTED_STEPS)))?;
         let gi: Vec<i64> = self
             .global_index
             .iter()
             .map(|&g| i64::try_from(g).unwrap_or(i64::MAX))
             .collect();
-        write_i64(&st, "global_index", &gi).map_err(h5("/status/global_index"))?;
+        write_i64(&st, leaf(layout::GLOBAL_INDEX), &gi)
+            .map_err(h5(&slash(layout::GLOBAL_INDEX)))?;
 
         // /derived
-        let derived = file.create_group("derived").map_err(h5("/derived"))?;
+        let derived = file
+            .create_group(layout::DERIVED)
+            .map_err(h5(&slash(layout::DERIVED)))?;
         for (name, values) in &self.derived {
-            write_f64(&derived, name, &[nv], values).map_err(h5(&format!("/derived/{name}")))?;
+            write_f64(&derived, name, &[nv], values).map_err(h5(&slash(&layout::derived(name))))?;
         }
 
         if let Some(v) = &self.verification {
@@ -1323,7 +1423,7 @@ impl CampaignWriter {
     {
         let e = |what: &str| h5(&format!("/xarray{what}"));
         let m = &self.meta;
-        let g = file.create_group("xarray").map_err(e(""))?;
+        let g = file.create_group(layout::XARRAY).map_err(e(""))?;
         // one name space in the group: the first use of a name wins (a parameter named
         // like a sensor keeps its value in /parameters only)
         let mut used: Vec<String> = vec!["variant".into(), "time".into()];
@@ -1332,19 +1432,45 @@ impl CampaignWriter {
             .iter()
             .map(|&x| i64::try_from(x).unwrap_or(i64::MAX))
             .collect();
+        // the variant axis is named after the one varied parameter when its values order
+        // the whole campaign strictly (a `--vary` range), so `sel(omega=..., method=
+        // "nearest")` works as it stands; otherwise it is `variant`
+        let axis = xarray_axis(c, &m.parameter_names).filter(|(name, _)| !used.contains(name));
         let variant = g
             .new_dataset::<i64>()
             .shape([gi.len()])
             .create("variant")
             .map_err(e("/variant"))?;
         variant.write_raw(&gi).map_err(e("/variant"))?;
-        variant.set_scale(Some("variant")).map_err(e("/variant"))?;
         set_ds_string_attr(
             &variant,
             "long_name",
             "global index of the variant in the campaign",
         )
         .map_err(e("/variant"))?;
+        let mut coords = Vec::new();
+        let axis_ds = match &axis {
+            None => {
+                variant.set_scale(Some("variant")).map_err(e("/variant"))?;
+                variant
+            }
+            Some((name, k)) => {
+                let what = format!("/{name}");
+                let col: Vec<f64> = m.parameter_values.iter().map(|row| row[*k]).collect();
+                let ds = g
+                    .new_dataset::<f64>()
+                    .shape([col.len()])
+                    .create(name)
+                    .map_err(e(&what))?;
+                ds.write_raw(&col).map_err(e(&what))?;
+                ds.set_scale(Some(name)).map_err(e(&what))?;
+                variant.attach_scale(0, &ds).map_err(e("/variant"))?;
+                used.push(name.clone());
+                coords.push("variant");
+                ds
+            }
+        };
+        let variant = axis_ds;
         let time = g
             .new_dataset::<f64>()
             .shape([self.n_time])
@@ -1353,7 +1479,6 @@ impl CampaignWriter {
         time.write_raw(&m.time).map_err(e("/time"))?;
         time.set_scale(Some("time")).map_err(e("/time"))?;
         set_ds_string_attr(&time, "units", "s").map_err(e("/time"))?;
-        let mut coords = Vec::new();
         for name in &c.varied {
             let Some(k) = m.parameter_names.iter().position(|p| p == name) else {
                 continue;
@@ -1384,7 +1509,7 @@ impl CampaignWriter {
             let comps: Vec<&str> = s.meta.components.iter().map(String::as_str).collect();
             let cds = g.write_vlen_strings(&dim, &comps).map_err(e(&what))?;
             cds.set_scale(Some(&dim)).map_err(e(&what))?;
-            g.link(name, &format!("/sensors/{name}"))
+            g.link(name, &slash(&layout::sensor(name)))
                 .map_err(e(&what))?;
             ds.attach_scale(0, &variant).map_err(e(&what))?;
             ds.attach_scale(1, &time).map_err(e(&what))?;
@@ -1398,9 +1523,9 @@ impl CampaignWriter {
         let mut per_variant: Vec<(String, String)> = self
             .derived
             .iter()
-            .map(|(n, _)| (n.clone(), format!("/derived/{n}")))
+            .map(|(n, _)| (n.clone(), slash(&layout::derived(n))))
             .collect();
-        per_variant.push(("state".into(), "/status/state".into()));
+        per_variant.push((leaf(layout::STATE).into(), slash(layout::STATE)));
         for (name, path) in per_variant {
             if used.contains(&name) {
                 continue;
@@ -1418,6 +1543,38 @@ impl CampaignWriter {
     }
 }
 
+/// The parameter that names the variant axis of `/xarray`, with its column in
+/// `/parameters/values`: the campaign's only varied parameter when its values, in global
+/// index order, are finite and strictly monotonic (a `--vary` range, or a one-column
+/// `--variants` table in order), so it is a valid xarray index in every shard and in the
+/// merged file alike (a subset of a strictly monotonic sequence is one). None otherwise:
+/// the axis is `variant`.
+pub fn xarray_axis(
+    c: &crate::campaign::CampaignInfo,
+    parameter_names: &[String],
+) -> Option<(String, usize)> {
+    let [name] = c.varied.as_slice() else {
+        return None;
+    };
+    let k = parameter_names.iter().position(|p| p == name)?;
+    let col: Vec<f64> = c
+        .variants
+        .iter()
+        .filter_map(|r| r.first().copied())
+        .collect();
+    if col.len() != c.variants.len() || col.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let up = col.windows(2).all(|w| w[0] < w[1]);
+    let down = col.windows(2).all(|w| w[0] > w[1]);
+    (up || down).then(|| (name.clone(), k))
+}
+
+/// `/` + a layout path: the name in error messages.
+fn slash(path: &str) -> String {
+    format!("/{path}")
+}
+
 /// `campaign_id`, `campaign_hash` and `/campaign` (see the layout in the module docs).
 fn write_campaign<E>(
     file: &H5File,
@@ -1427,21 +1584,30 @@ fn write_campaign<E>(
 where
     E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
 {
-    file.set_attr_string("campaign_id", &c.id)
+    file.set_attr_string(attr::CAMPAIGN_ID, &c.id)
         .map_err(h5("root attrs"))?;
-    file.set_attr_string("campaign_hash", &c.hash)
+    file.set_attr_string(attr::CAMPAIGN_HASH, &c.hash)
         .map_err(h5("root attrs"))?;
-    let g = file.create_group("campaign").map_err(h5("/campaign"))?;
-    write_scalar_string(&g, "definition", &c.definition).map_err(h5("/campaign/definition"))?;
+    let g = file
+        .create_group(layout::CAMPAIGN)
+        .map_err(h5(&slash(layout::CAMPAIGN)))?;
+    write_scalar_string(&g, leaf(layout::DEFINITION), &c.definition)
+        .map_err(h5(&slash(layout::DEFINITION)))?;
     let varied: Vec<&str> = c.varied.iter().map(String::as_str).collect();
-    write_strings(&g, "varied", &varied).map_err(h5("/campaign/varied"))?;
+    write_strings(&g, leaf(layout::VARIED), &varied).map_err(h5(&slash(layout::VARIED)))?;
     let values: Vec<f64> = c.variants.iter().flatten().copied().collect();
-    write_f64(&g, "variants", &[c.variants.len(), varied.len()], &values)
-        .map_err(h5("/campaign/variants"))?;
+    write_f64(
+        &g,
+        leaf(layout::VARIANTS),
+        &[c.variants.len(), varied.len()],
+        &values,
+    )
+    .map_err(h5(&slash(layout::VARIANTS)))?;
     let names: Vec<&str> = c.set.iter().map(|(n, _)| n.as_str()).collect();
-    write_strings(&g, "set_names", &names).map_err(h5("/campaign/set_names"))?;
+    write_strings(&g, leaf(layout::SET_NAMES), &names).map_err(h5(&slash(layout::SET_NAMES)))?;
     let values: Vec<f64> = c.set.iter().map(|(_, x)| *x).collect();
-    write_f64(&g, "set_values", &[values.len()], &values).map_err(h5("/campaign/set_values"))?;
+    write_f64(&g, leaf(layout::SET_VALUES), &[values.len()], &values)
+        .map_err(h5(&slash(layout::SET_VALUES)))?;
     Ok(())
 }
 
@@ -1451,7 +1617,7 @@ where
     E: Fn(&str) -> Box<dyn Fn(rust_hdf5::Hdf5Error) -> OutputError>,
 {
     let e = |what: &str| h5(&format!("/verification{what}"));
-    let g = file.create_group("verification").map_err(e(""))?;
+    let g = file.create_group(layout::VERIFICATION).map_err(e(""))?;
     let scalar = |name: &str, x: f64| -> H5Result<()> {
         g.new_dataset::<f64>()
             .scalar()
@@ -1509,7 +1675,7 @@ where
                 ds.write_raw(get(x)).map_err(e(&what))?;
             }
             let comps: Vec<&str> = x.components.iter().map(String::as_str).collect();
-            set_ds_string_array_attr(&ds, "components", &comps).map_err(e(&what))?;
+            set_ds_string_array_attr(&ds, attr::COMPONENTS, &comps).map_err(e(&what))?;
         }
     }
     Ok(())

@@ -1,0 +1,233 @@
+//! The `modes` verb: at rest, in the rotating frame, and over `--vary`.
+
+use anyhow::{anyhow, Context};
+use latdyn::model::{self, Model};
+
+use crate::cli::ModesArgs;
+use crate::emit;
+
+pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
+    if let Some(range) = &args.vary {
+        return modes_vary(args, range);
+    }
+    let m = args.model.load()?;
+    if let Some(spin) = latdyn::solver::rotating::find_spin(&m) {
+        return rotating_modes(args, &m, spin);
+    }
+    let preload = match args.about.as_str() {
+        "static" => true,
+        "reference" => false,
+        _ => !m.loads.is_empty() || m.gravity != [0.0; 3],
+    };
+    let state = if preload {
+        latdyn::solver::solve_statics(&m)
+            .with_context(|| format!("{}: static equilibrium for the modes", m.path))?
+            .state
+    } else {
+        latdyn::joint::State::new(&m)
+    };
+    let md = latdyn::solver::modes::lowest_modes(&m, &state, args.count)
+        .with_context(|| format!("{}: modes", m.path))?;
+    let count = args.count.min(md.frequencies_hz.len());
+    let f = &md.frequencies_hz[..count];
+    for w in &md.warnings {
+        eprintln!("warning: {w}");
+    }
+    if args.model.json {
+        let mut v = serde_json::json!({
+            "frequencies_hz": f,
+            "zero_frequency": &md.zero_frequency[..count],
+            "error_estimates": &md.error_estimates[..count],
+            "warnings": md.warnings,
+            "about": if preload { "static" } else { "reference" },
+            "free_dofs": m.n_eq,
+        });
+        if args.shapes {
+            v["shapes"] = serde_json::json!(md.shapes[..count]
+                .iter()
+                .map(|sh| {
+                    m.dofs
+                        .iter()
+                        .map(|d| {
+                            (
+                                d.name.clone(),
+                                serde_json::json!(d.eq.map(|e| sh[e]).unwrap_or(0.0)),
+                            )
+                        })
+                        .collect::<serde_json::Map<String, serde_json::Value>>()
+                })
+                .collect::<Vec<_>>());
+        }
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "modes {} about the {} configuration ({} free dofs)\n",
+            m.name,
+            if preload {
+                "static equilibrium"
+            } else {
+                "reference"
+            },
+            m.n_eq
+        );
+        for (k, x) in f.iter().enumerate() {
+            let tag = if md.zero_frequency[k] {
+                "  (zero frequency: rigid-body or mechanism motion)"
+            } else {
+                ""
+            };
+            s += &format!("  {:>3}  {:>14.6} Hz{tag}\n", k + 1, x);
+        }
+        emit(&s)
+    }
+}
+
+/// Modes of a model with a hub at constant speed: about the steady rotating state, in
+/// the rotating frame.
+pub(crate) fn rotating_modes(
+    args: &ModesArgs,
+    m: &Model,
+    spin: latdyn::solver::rotating::SteadySpin,
+) -> anyhow::Result<()> {
+    let rm = latdyn::solver::rotating::rotating_modes(m, spin)
+        .with_context(|| format!("{}: rotating-frame modes", m.path))?;
+    let count = args.count.min(rm.frequencies_hz.len());
+    let f = &rm.frequencies_hz[..count];
+    if args.model.json {
+        let v = serde_json::json!({
+            "frequencies_hz": f,
+            "damping_ratios": &rm.damping[..count],
+            "about": "steady_rotation",
+            "omega_rad_s": rm.omega,
+            "free_dofs": m.n_eq,
+        });
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "modes {} in the frame rotating at {:.6} rad/s, about the steady state ({} free dofs)\n",
+            m.name, rm.omega, m.n_eq
+        );
+        for (k, x) in f.iter().enumerate() {
+            s += &format!("  {:>3}  {:>14.6} Hz\n", k + 1, x);
+        }
+        emit(&s)
+    }
+}
+
+/// `modes --vary`: rotating-frame modes at each value of one parameter, tracked into
+/// branches by MAC against the previous value's shapes.
+pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> anyhow::Result<()> {
+    use latdyn::solver::rotating;
+    if args.count == 0 {
+        return Err(anyhow!("--count must be at least 1"));
+    }
+    let base = model::load(&args.model.model, &args.model.set)?;
+    if base.param(&range.name).is_none() {
+        let names: Vec<&str> = base.params.iter().map(|(n, _)| n.as_str()).collect();
+        return Err(anyhow!(
+            "--vary {}: the model has no parameter `{}` (parameters: {})",
+            range.name,
+            range.name,
+            if names.is_empty() {
+                "none".to_string()
+            } else {
+                names.join(", ")
+            }
+        ));
+    }
+    let values = range.values();
+    // a few spare shapes per value: a branch whose mode has moved past others must
+    // still find it among the candidates
+    let want = args.count + 4;
+    let mut steps = Vec::with_capacity(values.len());
+    let mut free_dofs = 0;
+    for &v in &values {
+        let mut set = args.model.set.clone();
+        set.retain(|(n, _)| *n != range.name);
+        set.push((range.name.clone(), v));
+        let m = model::load(&args.model.model, &set)?;
+        if m.param(&range.name).is_none() {
+            return Err(anyhow!(
+                "--vary {}: the model has no parameter `{}`",
+                range.name,
+                range.name
+            ));
+        }
+        let spin = rotating::find_spin(&m).ok_or_else(|| {
+            anyhow!(
+                "--vary {}={v}: no body of {} turns at a constant nonzero speed; --vary \
+                 follows rotating-frame modes, so every value must give a spinning hub \
+                 (start a speed range just above 0, e.g. 1e-6)",
+                range.name,
+                m.path
+            )
+        })?;
+        if free_dofs != 0 && free_dofs != m.n_eq {
+            return Err(anyhow!(
+                "--vary {}={v}: the number of free coordinates changes ({} → {}); modes \
+                 can only be followed across values of the same topology",
+                range.name,
+                free_dofs,
+                m.n_eq
+            ));
+        }
+        free_dofs = m.n_eq;
+        let rm = rotating::rotating_modes_with_shapes(&m, spin, want)
+            .with_context(|| format!("{}: rotating-frame modes at {}={v}", m.path, range.name))?;
+        steps.push(rm);
+    }
+    let branches = rotating::track_branches(&steps, args.count);
+    let speeds: Vec<f64> = steps.iter().map(|s| s.omega).collect();
+    if args.model.json {
+        let list: Vec<serde_json::Value> = branches
+            .iter()
+            .enumerate()
+            .map(|(k, b)| {
+                serde_json::json!({
+                    "branch": k + 1,
+                    "frequencies_hz": b.frequencies_hz.iter().map(|x| x.is_finite().then_some(*x)).collect::<Vec<_>>(),
+                    "damping_ratios": b.damping.iter().map(|x| x.is_finite().then_some(*x)).collect::<Vec<_>>(),
+                    "mac": b.mac,
+                })
+            })
+            .collect();
+        let sorted: Vec<Vec<f64>> = steps
+            .iter()
+            .map(|s| s.frequencies_hz[..args.count.min(s.frequencies_hz.len())].to_vec())
+            .collect();
+        let v = serde_json::json!({
+            "about": "steady_rotation",
+            "parameter": range.name,
+            "values": values,
+            "omega_rad_s": speeds,
+            "branches": list,
+            "sorted_frequencies_hz": sorted,
+            "free_dofs": free_dofs,
+        });
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "rotating-frame modes of {} followed by shape (MAC) over {} = {}..{} ({} values)\n",
+            args.model.model.display(),
+            range.name,
+            range.start,
+            range.stop,
+            values.len()
+        );
+        s += &format!("  {:>12}", range.name);
+        for k in 0..branches.len() {
+            s += &format!("  {:>12}", format!("branch {} Hz", k + 1));
+        }
+        s += "  min MAC\n";
+        for (i, v) in values.iter().enumerate() {
+            s += &format!("  {v:>12.6}");
+            let mut worst = 1.0f64;
+            for b in &branches {
+                s += &format!("  {:>12.6}", b.frequencies_hz[i]);
+                worst = worst.min(b.mac[i]);
+            }
+            s += &format!("  {worst:.3}\n");
+        }
+        emit(&s)
+    }
+}

@@ -1,0 +1,271 @@
+//! The `run` verb: one transient run, its samples streamed to HDF5 or CSV.
+
+use anyhow::anyhow;
+use latdyn::model::Model;
+
+use crate::backend::choose_stage;
+use crate::cli::RunArgs;
+use crate::{
+    claim_output, emit, fail, is_csv, stop_flag, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT,
+};
+
+/// Where `run -o` puts its samples as they come: the campaign layout with one variant,
+/// or CSV. Both are rewritten atomically at most every [`RUN_FLUSH_S`] and at the end.
+pub(crate) enum RunSink {
+    H5(Box<latdyn::output::CampaignWriter>),
+    Csv {
+        target: latdyn::output::OutputTarget,
+        text: String,
+    },
+}
+
+/// Shortest time between two rewrites of the `run -o` file [s] (as a sweep).
+pub(crate) const RUN_FLUSH_S: f64 = 2.0;
+
+impl RunSink {
+    pub(crate) fn open(
+        m: &Model,
+        target: latdyn::output::OutputTarget,
+        stage: &latdyn::ensemble::Stage,
+    ) -> Result<RunSink, latdyn::output::OutputError> {
+        if is_csv(target.path()) {
+            let text = csv_header(m);
+            // written at once: the path is shown writable before the run
+            target.replace_with(text.as_bytes())?;
+            Ok(RunSink::Csv { target, text })
+        } else {
+            let mut w = latdyn::output::CampaignWriter::create_at(
+                target,
+                &latdyn::output::CampaignMeta::single_run(
+                    m,
+                    stage,
+                    std::env::args().collect::<Vec<_>>().join(" "),
+                ),
+            )?;
+            let running = latdyn::output::VariantStatus {
+                state: latdyn::output::VariantState::Running,
+                ..Default::default()
+            };
+            w.set_status(0, &running)?;
+            Ok(RunSink::H5(Box::new(w)))
+        }
+    }
+
+    pub(crate) fn sample(
+        &mut self,
+        i: usize,
+        t: f64,
+        vals: &[Vec<f64>],
+    ) -> Result<(), latdyn::output::OutputError> {
+        match self {
+            RunSink::H5(w) => w.write_samples(0, i, vals),
+            RunSink::Csv { text, .. } => {
+                csv_row(text, t, vals);
+                Ok(())
+            }
+        }
+    }
+
+    pub(crate) fn flush(&mut self) -> Result<(), latdyn::output::OutputError> {
+        match self {
+            RunSink::H5(w) => w.flush(),
+            RunSink::Csv { target, text } => target.replace_with(text.as_bytes()),
+        }
+    }
+
+    pub(crate) fn finish(
+        self,
+        status: &latdyn::output::VariantStatus,
+    ) -> Result<(), latdyn::output::OutputError> {
+        use latdyn::output::VariantState;
+        match self {
+            RunSink::H5(mut w) => {
+                w.set_status(0, status)?;
+                w.finish(if status.state == VariantState::Interrupted {
+                    "interrupted"
+                } else {
+                    "complete"
+                })
+            }
+            RunSink::Csv { target, text } => target.replace_with(text.as_bytes()),
+        }
+    }
+}
+
+pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
+    use latdyn::output::{VariantState, VariantStatus};
+    use std::sync::atomic::Ordering;
+    let mut m = args.model.load()?;
+    if args.accuracy.is_some() {
+        m.solver.accuracy = args.accuracy;
+    }
+    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let (stage, _batcher) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
+    let mut sink = match target {
+        Some(t) => Some(RunSink::open(&m, t, &stage).map_err(|e| anyhow!("{e}"))?),
+        None => None,
+    };
+    let stop = stop_flag();
+    let mut out_err: Option<latdyn::output::OutputError> = None;
+    let mut n_samples = 0usize;
+    let mut last_flush = std::time::Instant::now();
+    let t0 = std::time::Instant::now();
+    let (hist, stats, err) = {
+        let on_sample = |t: f64, vals: &[Vec<f64>]| {
+            let i = n_samples;
+            n_samples += 1;
+            let (Some(s), None) = (sink.as_mut(), out_err.as_ref()) else {
+                return;
+            };
+            let mut r = s.sample(i, t, vals);
+            if r.is_ok() && last_flush.elapsed().as_secs_f64() >= RUN_FLUSH_S {
+                r = s.flush();
+                last_flush = std::time::Instant::now();
+            }
+            if let Err(e) = r {
+                // the file keeps its last flush; stop rather than compute what cannot be kept
+                out_err = Some(e);
+                stop.store(true, Ordering::SeqCst);
+            }
+        };
+        let ctx = latdyn::solver::dynamics::RunContext {
+            stop: Some(stop.as_ref()),
+            symbolic: None,
+            eval: stage.make.as_ref().map(|make| make()),
+        };
+        latdyn::solver::dynamics::run_in(&m, &ctx, on_sample)
+    };
+    let wall = t0.elapsed().as_secs_f64();
+    let interrupted = matches!(
+        err,
+        Some(latdyn::solver::dynamics::DynamicsError::Interrupted { .. })
+    );
+    if let Some(s) = sink {
+        let status = VariantStatus::of_run(
+            match &err {
+                None => VariantState::Completed,
+                Some(_) if interrupted => VariantState::Interrupted,
+                Some(_) => VariantState::Failed,
+            },
+            err.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+            err.as_ref().map(|e| e.time()).unwrap_or(f64::NAN),
+            &stats,
+            wall,
+            stats.warnings().join("\n"),
+        );
+        // after an output error the last good flush is what stays
+        if out_err.is_none() {
+            if let Err(e) = s.finish(&status) {
+                out_err = Some(e);
+            }
+        }
+    }
+    let warnings: Vec<String> = stats.warnings();
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", m.path);
+    }
+    let (status, message) = match (&out_err, &err) {
+        (Some(e), _) => ("output_failed", e.to_string()),
+        (None, Some(e)) if interrupted => ("interrupted", e.to_string()),
+        (None, Some(e)) => ("failed", e.to_string()),
+        (None, None) => ("completed", String::new()),
+    };
+    if args.model.json {
+        let mut sensors = serde_json::Map::new();
+        let summaries = latdyn::ensemble::summarize(&m, &hist);
+        for ((k, sn), sum) in m.sensors.iter().enumerate().zip(&summaries) {
+            let vals = &hist.values[k];
+            // before its first sample a run has no extremes ([]) and no final value (null)
+            let none: &[f64] = &[];
+            let (min, max) = match vals.is_empty() {
+                true => (none, none),
+                false => (&sum.min[..], &sum.max[..]),
+            };
+            sensors.insert(
+                sn.name.clone(),
+                serde_json::json!({
+                    "t": hist.t,
+                    "values": vals,
+                    "min": min,
+                    "max": max,
+                    "final": vals.last(),
+                    "components": latdyn::sensors::components(&sn.kind),
+                }),
+            );
+        }
+        let v = serde_json::json!({
+            "sensors": sensors,
+            "steps": stats.steps,
+            "rejected_steps": stats.rejected_steps,
+            "newton_iterations": stats.newton_iterations,
+            "free_dofs": m.n_eq,
+            "matrix_nnz": stats.matrix_nnz,
+            "factor_nnz": stats.factor_nnz,
+            "stage_times_s": {
+                "element": stats.times.element_s,
+                "assembly": stats.times.assembly_s,
+                "factorization": stats.times.factorization_s,
+                "output": stats.times.output_s,
+            },
+            "energy_growth": stats.energy_growth,
+            "energy_loss": stats.energy_loss,
+            "time_error_estimate": stats.time_error_estimate,
+            "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
+            "warnings": warnings,
+            "wall_s": wall,
+            "status": status,
+            "message": message,
+            "backend": stage.backend,
+            "precision": stage.precision,
+            "adapter": stage.adapter,
+        });
+        emit(&format!("{v}\n"))?;
+    } else {
+        eprintln!(
+            "run {}: {} steps ({} rejected, {} Newton iterations) in {:.3} s",
+            m.name, stats.steps, stats.rejected_steps, stats.newton_iterations, wall
+        );
+    }
+    let written = args
+        .output
+        .as_ref()
+        .map(|p| format!("; {} holds the samples so far", p.display()))
+        .unwrap_or_default();
+    if let Some(e) = out_err {
+        let kept = args
+            .output
+            .as_ref()
+            .map(|p| format!(" (the run stopped; {} keeps its last flush)", p.display()))
+            .unwrap_or_default();
+        return Err(fail(EXIT_OUTPUT, format!("{e}{kept}")));
+    }
+    match err {
+        Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
+        Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
+        None => Ok(()),
+    }
+}
+
+/// CSV of the sensor histories: the header (time, then every sensor component).
+pub(crate) fn csv_header(m: &Model) -> String {
+    let mut s = String::from("t");
+    for sn in &m.sensors {
+        for c in latdyn::sensors::components(&sn.kind) {
+            s += &format!(",{}.{c}", sn.name);
+        }
+    }
+    s.push('\n');
+    s
+}
+
+/// One CSV row: the time, then every sensor component.
+pub(crate) fn csv_row(s: &mut String, t: f64, vals: &[Vec<f64>]) {
+    use std::fmt::Write as _;
+    let _ = write!(s, "{t}");
+    for v in vals {
+        for x in v {
+            let _ = write!(s, ",{x}");
+        }
+    }
+    s.push('\n');
+}

@@ -1,0 +1,120 @@
+//! The `statics` verb, with and without `--path`.
+
+use anyhow::{anyhow, bail, Context};
+use latdyn::model::Model;
+
+use crate::cli::StaticsArgs;
+use crate::{claim_output, emit, fail, EXIT_FAILED, EXIT_OUTPUT};
+
+pub(crate) fn sensor_map(
+    m: &Model,
+    vals: &[Vec<f64>],
+) -> serde_json::Map<String, serde_json::Value> {
+    m.sensors
+        .iter()
+        .zip(vals)
+        .map(|(sn, v)| (sn.name.clone(), serde_json::json!(v)))
+        .collect()
+}
+
+pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
+    if sargs.path.path {
+        return statics_path(sargs);
+    }
+    if sargs.path.any_option() || sargs.output.is_some() {
+        bail!("statics: --control, --lambda-max, --until, --limit-points, --max-length, --max-points, --first-step and -o need --path");
+    }
+    let args = &sargs.model;
+    let m = args.load()?;
+    let t0 = std::time::Instant::now();
+    let sol = latdyn::solver::solve_statics(&m).with_context(|| m.path.clone())?;
+    let wall = t0.elapsed().as_secs_f64();
+    if args.json {
+        let v = serde_json::json!({
+            "sensors": sensor_map(&m, &sol.sensors),
+            "strain_energy": sol.strain_energy,
+            "load_steps": sol.report.load_steps,
+            "newton_iterations": sol.report.newton_iterations,
+            "rejected_steps": sol.report.rejected_steps,
+            "wall_s": wall,
+        });
+        emit(&format!("{v}\n"))
+    } else {
+        let mut s = format!(
+            "statics {}: {} load steps, {} Newton iterations, {:.3} s\n",
+            m.name, sol.report.load_steps, sol.report.newton_iterations, wall
+        );
+        for (sn, v) in m.sensors.iter().zip(&sol.sensors) {
+            let comps = latdyn::sensors::components(&sn.kind);
+            let parts: Vec<String> = comps
+                .iter()
+                .zip(v)
+                .map(|(c, x)| format!("{c}={x:.6e}"))
+                .collect();
+            s += &format!("  {:<16} {}\n", sn.name, parts.join(" "));
+        }
+        emit(&s)
+    }
+}
+
+/// `statics --path`: one equilibrium path, JSON / text summary, optional campaign file.
+pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
+    use latdyn::solver::path;
+    let m = args.model.load()?;
+    let opts = args.path.options(&m)?;
+    path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
+    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let t0 = std::time::Instant::now();
+    let r = path::follow(&m, &opts);
+    let wall = t0.elapsed().as_secs_f64();
+    let mut out_err = None;
+    if let Some(t) = target {
+        let meta = path::campaign_meta(
+            &[&m],
+            r.lambda.clone(),
+            std::env::args().collect::<Vec<_>>().join(" "),
+            1,
+        );
+        let written = latdyn::output::CampaignWriter::create_at(t, &meta).and_then(|mut w| {
+            path::write_variant(&mut w, 0, &r, wall)?;
+            w.finish("complete")
+        });
+        out_err = written.err();
+    }
+    if args.model.json {
+        emit(&format!("{}\n", path::to_json(&m, &r, wall)))?;
+    } else {
+        let mut s = format!(
+            "path {} ({} control): {} points, {} Newton iterations, {} rejected steps, {:.3} s; \
+             λ from {:.6e} to {:.6e}, stopped by {}\n",
+            m.name,
+            r.control.label(),
+            r.lambda.len(),
+            r.newton_iterations,
+            r.rejected_steps,
+            wall,
+            r.lambda.first().copied().unwrap_or(0.0),
+            r.lambda.last().copied().unwrap_or(0.0),
+            r.stopped_by
+        );
+        for lp in &r.limit_points {
+            s += &format!(
+                "  limit point ({}) at λ = {:.6e} (point {}; parabola through its neighbours: \
+                 {:.6e})\n",
+                lp.kind, lp.lambda, lp.index, lp.lambda_fit
+            );
+        }
+        for b in &r.bifurcations {
+            s += &format!("  det K changes sign at λ = {:.6e} (point {}) with λ still moving the same way: bifurcation\n", b.lambda, b.index);
+        }
+        emit(&s)?;
+    }
+    if let Some(e) = out_err {
+        return Err(fail(EXIT_OUTPUT, e.to_string()));
+    }
+    match &r.error {
+        Some(path::PathError::Input(msg)) => bail!("{}: {msg}", m.path),
+        Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
+        None => Ok(()),
+    }
+}

@@ -1,0 +1,686 @@
+//! The campaign verbs: `sweep` (with `--plan`, `--resume`, `--path`) and `merge`.
+
+use anyhow::{anyhow, bail};
+use latdyn::model::{self, Model};
+
+use crate::backend::{choose_stage, GPU_BATCH_THREADS};
+use crate::cli::{MergeArgs, SweepArgs};
+use crate::{
+    claim_output, emit, fail, injected_panic, stop_flag, EXIT_FAILED, EXIT_INTERNAL,
+    EXIT_INTERRUPTED, EXIT_OUTPUT, EXIT_USAGE,
+};
+
+/// `latdyn merge`: exit 0 when every variant completed, 3 when all ran and some failed,
+/// 4 when some are missing or interrupted (resume the merged file), 2 when refused
+/// (another campaign, repeated indices, unreadable input), 5 when the output failed.
+pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
+    use latdyn::campaign::{self, MergeError, MergeReport};
+    let out_canon = std::fs::canonicalize(&args.output).ok();
+    for s in &args.shards {
+        if out_canon.is_some() && std::fs::canonicalize(s).ok() == out_canon {
+            bail!(
+                "merge: -o {} is one of the shard files; write the merged campaign elsewhere",
+                args.output.display()
+            );
+        }
+    }
+    let target = claim_output(&args.output)?;
+    let mut report = MergeReport::default();
+    let command_line = std::env::args().collect::<Vec<_>>().join(" ");
+    let result = campaign::merge(&args.shards, target, &command_line, &mut report);
+    let (code, message) = match &result {
+        Ok(()) if !report.missing.is_empty() || !report.interrupted.is_empty() => (
+            EXIT_INTERRUPTED,
+            format!(
+                "campaign incomplete: {} missing, {} interrupted, {} failed of {} variants; complete it with `latdyn sweep ... --resume {}`",
+                report.missing.len(),
+                report.interrupted.len(),
+                report.failed.len(),
+                report.variants,
+                args.output.display()
+            ),
+        ),
+        Ok(()) if !report.failed.is_empty() => (
+            EXIT_FAILED,
+            format!(
+                "{} of {} variants failed (see their status and message in {})",
+                report.failed.len(),
+                report.variants,
+                args.output.display()
+            ),
+        ),
+        Ok(()) => (0, String::new()),
+        Err(MergeError::Output(e)) => (EXIT_OUTPUT, e.to_string()),
+        Err(e) => (EXIT_USAGE, e.to_string()),
+    };
+    if result.is_err() {
+        report.status = "refused".into();
+    }
+    report.message = message.clone();
+    let list = |v: &[usize]| {
+        let shown: Vec<String> = v.iter().take(30).map(|g| g.to_string()).collect();
+        format!(
+            "{}{}",
+            shown.join(", "),
+            if v.len() > shown.len() { ", …" } else { "" }
+        )
+    };
+    if result.is_ok() {
+        eprintln!(
+            "merge: campaign {} ({} variants) from {} shard file(s) into {} in {:.2} s: {} completed, {} failed, {} interrupted, {} missing",
+            report.campaign_id,
+            report.variants,
+            report.shards.len(),
+            args.output.display(),
+            report.wall_s,
+            report.completed,
+            report.failed.len(),
+            report.interrupted.len(),
+            report.missing.len()
+        );
+        for (what, v) in [
+            ("missing", &report.missing),
+            ("interrupted", &report.interrupted),
+            ("failed", &report.failed),
+        ] {
+            if !v.is_empty() {
+                eprintln!("merge: {what} global indices: {}", list(v));
+            }
+        }
+        if !report.verification_not_merged.is_empty() {
+            eprintln!(
+                "warning: merge: {} have /verification (sweep --verify verifies in shard 1 \
+                 only); the merged file carries none of them",
+                report.verification_not_merged.join(", ")
+            );
+        }
+    }
+    if args.json {
+        emit(&format!(
+            "{}\n",
+            serde_json::to_string(&report).map_err(|e| anyhow!("{e}"))?
+        ))?;
+    }
+    match code {
+        0 => Ok(()),
+        c => Err(fail(c, message)),
+    }
+}
+
+pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
+    use latdyn::ensemble::{self, Campaign};
+    use std::io::IsTerminal;
+    use std::sync::atomic::Ordering;
+    if args.path.path {
+        return sweep_path(args);
+    }
+    if args.path.any_option() {
+        bail!("sweep: --control, --lambda-max, --until, --limit-points, --max-length, --max-points and --first-step need --path");
+    }
+    let variants = ensemble::variants(
+        &args.model.model,
+        &args.model.set,
+        &args.vary,
+        args.variants.as_deref(),
+    )?;
+    let frequency_sensor = match &args.frequency {
+        None => None,
+        Some(spec) => {
+            let m = args.model.load()?;
+            let (name, comp) = spec.split_once('.').unwrap_or((spec.as_str(), ""));
+            let k = m
+                .sensor_index(name)
+                .ok_or_else(|| anyhow!("--frequency: the model has no sensor `{name}`"))?;
+            let comps = latdyn::sensors::components(&m.sensors[k].kind);
+            let c = if comp.is_empty() {
+                0
+            } else {
+                comps.iter().position(|c| *c == comp).ok_or_else(|| {
+                    anyhow!(
+                        "--frequency: sensor `{name}` has no component `{comp}` (it has {})",
+                        comps.join(", ")
+                    )
+                })?
+            };
+            Some((name.to_string(), c))
+        }
+    };
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    // the element count decides `auto`; the model is compiled again per variant later
+    let n_elem = args.model.load()?.elements.len();
+    // before compiling the variants: a refused path costs nothing
+    let mut target = args
+        .output
+        .as_deref()
+        .or(args.resume.as_deref())
+        .map(claim_output)
+        .transpose()?;
+    let n_var = variants.len().max(1);
+    let (stage, batcher) = choose_stage(&args.backend, n_var, n_elem, cores)?;
+    let threads = args.threads.unwrap_or(if stage.make.is_some() {
+        // GPU: one solver thread per variant in flight; they sleep while the batcher
+        // evaluates their elements, so many more than cores keeps the batches large
+        n_var.clamp(1, GPU_BATCH_THREADS)
+    } else {
+        cores
+    });
+    let c = Campaign {
+        model_path: args.model.model.clone(),
+        base: args.model.set.clone(),
+        variants,
+        threads,
+        output: args.output.clone().or(args.resume.clone()),
+        shard: args.shard,
+        accuracy: args.accuracy,
+        frequency_sensor,
+        command_line: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    if args.plan {
+        return sweep_plan(args, &c, &stage);
+    }
+    // --verify K: K variants of shard 1 (the whole campaign when not sharded), checked
+    // before any variant runs
+    let verify_chosen: Option<Vec<usize>> = match (args.verify, args.shard) {
+        (None, _) => None,
+        (Some(k), shard) => {
+            let (s, n) = shard.unwrap_or((1, 1));
+            let shard1: Vec<usize> = (0..c.variants.len()).filter(|i| i % n == 0).collect();
+            let total = c.variants.len();
+            let mut note = format!(
+                "the campaign has {total} variant{}",
+                if total == 1 { "" } else { "s" }
+            );
+            if n > 1 {
+                note += &format!(
+                    "; verification runs in shard 1/{n}, which has {}",
+                    shard1.len()
+                );
+            }
+            latdyn::verify::check_count(k, shard1.len(), &note).map_err(|e| anyhow!(e))?;
+            if s == 1 {
+                Some(latdyn::verify::select(&shard1, k).map_err(|e| anyhow!(e))?)
+            } else {
+                eprintln!("note: --verify: verification runs in shard 1/{n} only; not in this shard {s}/{n}");
+                None
+            }
+        }
+    };
+    let (prepared, resume) = match (&args.resume, target.take()) {
+        (Some(path), Some(t)) => {
+            let r = latdyn::campaign::resume(t, &c, &stage).map_err(|e| anyhow!("{e}"))?;
+            eprintln!(
+                "sweep --resume {}: {} variant(s) to run (not completed) of {} in the file",
+                path.display(),
+                r.rows.len(),
+                r.writer.n_variants()
+            );
+            (r.prepared, Some((r.writer, r.rows)))
+        }
+        (_, t) => {
+            target = t;
+            (ensemble::prepare(&c)?, None)
+        }
+    };
+    let stop = stop_flag();
+    let bar = if std::io::stderr().is_terminal() {
+        let b = indicatif::ProgressBar::new(prepared.models.len() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} variants, {elapsed} elapsed, ETA {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Some(b)
+    } else {
+        None
+    };
+    let t0 = std::time::Instant::now();
+    let ensemble::CampaignRun {
+        outcomes,
+        output_error,
+        verification,
+    } = {
+        let progress = |done: usize, _: usize| {
+            if let Some(b) = &bar {
+                b.set_position(done as u64);
+            }
+            if injected_panic("worker") {
+                panic!("injected panic in a sweep worker (LATDYN_FAULT_PANIC=worker)");
+            }
+        };
+        match resume {
+            Some((writer, rows)) => {
+                ensemble::run_resume(&c, &prepared, &stop, &progress, &stage, writer, &rows)
+            }
+            None => ensemble::run_verified_to(
+                &c,
+                &prepared,
+                &stop,
+                false,
+                &progress,
+                &stage,
+                target,
+                verify_chosen.as_deref(),
+            ),
+        }
+    }
+    .map_err(|e| anyhow!("{e}"))?;
+    if let Some(b) = &batcher {
+        let st = b.stats();
+        eprintln!(
+            "gpu {}: {} rounds, {:.1} requests per round, upload {:.3} s, kernels {:.3} s, download {:.3} s",
+            b.name(),
+            st.rounds,
+            st.requests as f64 / st.rounds.max(1) as f64,
+            st.gpu.upload_s,
+            st.gpu.kernel_s,
+            st.gpu.download_s
+        );
+    }
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let wall = t0.elapsed().as_secs_f64();
+    let failed = outcomes
+        .iter()
+        .filter(|o| o.state != latdyn::output::VariantState::Completed)
+        .count();
+    let n_failed = outcomes
+        .iter()
+        .filter(|o| o.state == latdyn::output::VariantState::Failed)
+        .count();
+    let interrupted = stop.load(Ordering::SeqCst) && output_error.is_none();
+    let (status, message) = match &output_error {
+        Some(e) => (
+            "output_failed",
+            format!(
+                "{e}; the campaign stopped (variants not run are marked not_run){}",
+                c.output
+                    .as_ref()
+                    .map(|p| format!(", {} keeps its last flush", p.display()))
+                    .unwrap_or_default()
+            ),
+        ),
+        None if interrupted => (
+            "interrupted",
+            "interrupted by a signal; the campaign file is marked interrupted".to_string(),
+        ),
+        None => ("complete", String::new()),
+    };
+    eprintln!(
+        "sweep {}: {} variants ({} not completed) in {:.2} s on {} threads{}",
+        c.model_path.display(),
+        outcomes.len(),
+        failed,
+        wall,
+        threads,
+        match (&c.output, &output_error) {
+            (Some(p), None) => format!(", written to {}", p.display()),
+            (Some(p), Some(_)) => format!(", writing {} failed", p.display()),
+            (None, _) => String::new(),
+        }
+    );
+    // per kind of warning: how many variants, which (first 20), and the first text in full
+    let mut kinds: Vec<(String, Vec<usize>, String)> = Vec::new();
+    for o in &outcomes {
+        for w in &o.warnings {
+            let kind = latdyn::frequency::warning_kind(w);
+            match kinds.iter_mut().find(|(k, _, _)| *k == kind) {
+                Some((_, idx, _)) => {
+                    if idx.last() != Some(&o.global_index) {
+                        idx.push(o.global_index)
+                    }
+                }
+                None => kinds.push((kind, vec![o.global_index], w.clone())),
+            }
+        }
+    }
+    for (kind, idx, first) in &kinds {
+        let shown: Vec<String> = idx.iter().take(20).map(|i| i.to_string()).collect();
+        eprintln!(
+            "warning: {} variant(s): {kind}: indices {}{} (variant {}: {first})",
+            idx.len(),
+            shown.join(", "),
+            if idx.len() > shown.len() { ", …" } else { "" },
+            idx[0]
+        );
+    }
+    if let Some(v) = &verification {
+        eprintln!("{}", v.summary());
+        for w in &v.warnings {
+            eprintln!("warning: verify: {w}");
+        }
+    }
+    if args.model.json {
+        let m0 = prepared.models.first();
+        let vs: Vec<serde_json::Value> = outcomes
+            .iter()
+            .map(|o| {
+                let sensors: serde_json::Map<String, serde_json::Value> = m0
+                    .map(|m| {
+                        m.sensors
+                            .iter()
+                            .zip(&o.sensors)
+                            .map(|(s, x)| {
+                                (
+                                    s.name.clone(),
+                                    serde_json::json!({"min": x.min, "max": x.max, "final": x.last}),
+                                )
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                let params: serde_json::Map<String, serde_json::Value> = o
+                    .parameters
+                    .iter()
+                    .map(|(n, v)| (n.clone(), serde_json::json!(v)))
+                    .collect();
+                let derived: serde_json::Map<String, serde_json::Value> = o
+                    .derived
+                    .iter()
+                    .map(|(n, v)| (n.clone(), serde_json::json!(v)))
+                    .collect();
+                serde_json::json!({
+                    "index": o.global_index,
+                    "parameters": params,
+                    "status": match o.state {
+                        latdyn::output::VariantState::Completed => "completed",
+                        latdyn::output::VariantState::Interrupted => "interrupted",
+                        latdyn::output::VariantState::Pending => "not_run",
+                        _ => "failed",
+                    },
+                    "message": o.message,
+                    "steps": o.steps,
+                    "rejected_steps": o.rejected_steps,
+                    "wall_s": o.wall_s,
+                    "energy_growth": o.energy_growth,
+                    "energy_loss": o.energy_loss,
+                    "time_error_estimate": o.time_error_estimate,
+                    "warnings": o.warnings,
+                    "sensors": sensors,
+                    "derived": derived,
+                })
+            })
+            .collect();
+        let mut v = serde_json::json!({
+            "status": status,
+            "message": message,
+            "failed_variants": n_failed,
+            "variants": vs,
+            "wall_s": wall,
+            "backend": stage.backend,
+            "precision": stage.precision,
+            "adapter": stage.adapter,
+            "threads": threads,
+        });
+        if args.verify.is_some() {
+            v["verification"] = match &verification {
+                Some(x) => x.to_json(),
+                None if verify_chosen.is_none() => serde_json::json!({
+                    "skipped": "verification runs in shard 1 only"
+                }),
+                None => serde_json::json!({
+                    "skipped": "the campaign did not finish (interrupted or output failed)"
+                }),
+            };
+        }
+        emit(&format!("{v}\n"))?;
+    }
+    let panicked: Vec<String> = outcomes
+        .iter()
+        .filter(|o| o.panicked)
+        .map(|o| o.global_index.to_string())
+        .collect();
+    if !panicked.is_empty() {
+        // each panic printed its own line (the hook); this one says which variants
+        return Err(fail(
+            EXIT_INTERNAL,
+            format!(
+                "internal error in variant(s) {} (marked failed; this is a bug in latdyn; \
+                 please report it)",
+                panicked.join(", ")
+            ),
+        ));
+    }
+    if output_error.is_some() {
+        return Err(fail(EXIT_OUTPUT, message));
+    }
+    if interrupted {
+        return Err(fail(EXIT_INTERRUPTED, message));
+    }
+    if n_failed > 0 {
+        return Err(fail(
+            EXIT_FAILED,
+            format!(
+                "{n_failed} of {} variants failed (see their status and message{})",
+                outcomes.len(),
+                c.output
+                    .as_ref()
+                    .map(|p| format!(" in {}", p.display()))
+                    .unwrap_or_default()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Fraction of t_end a `sweep --plan` probe runs.
+pub(crate) const PROBE_FRACTION: f64 = 0.1;
+
+/// `sweep --plan`: the variant table with each variant's shard, and the cost estimate.
+pub(crate) fn sweep_plan(
+    args: &SweepArgs,
+    c: &latdyn::ensemble::Campaign,
+    stage: &latdyn::ensemble::Stage,
+) -> anyhow::Result<()> {
+    use latdyn::campaign;
+    let n = c.variants.len();
+    let shards = args.shards;
+    // one compiled variant gives the time grid and sensors of the identity
+    let p = latdyn::ensemble::prepare_rows(c, vec![0])?;
+    let info = latdyn::ensemble::identify(c, &p, stage)?;
+    let m0 = &p.models[0];
+    let n_time = p.time.len();
+    let values_per_variant: usize = m0
+        .sensors
+        .iter()
+        .map(|s| latdyn::sensors::components(&s.kind).len())
+        .sum::<usize>()
+        * n_time;
+    let probes = campaign::probe(c, &campaign::probe_indices(n, args.probe), PROBE_FRACTION)?;
+    let ok: Vec<f64> = probes
+        .iter()
+        .filter(|x| x.status == "completed")
+        .map(|x| x.per_variant_s)
+        .collect();
+    // the median: the first run of a process pays for cold caches and page faults
+    let mean = (!ok.is_empty()).then(|| {
+        let mut v = ok.clone();
+        v.sort_by(f64::total_cmp);
+        if v.len() % 2 == 1 {
+            v[v.len() / 2]
+        } else {
+            (v[v.len() / 2 - 1] + v[v.len() / 2]) / 2.0
+        }
+    });
+    let max = ok
+        .iter()
+        .copied()
+        .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))));
+    let per_shard = n.div_ceil(shards);
+    let threads = args.threads.unwrap_or(1);
+    let table: Vec<serde_json::Value> = c
+        .variants
+        .iter()
+        .enumerate()
+        .map(|(g, row)| {
+            let params: serde_json::Map<String, serde_json::Value> = row
+                .iter()
+                .map(|(k, v)| (k.clone(), serde_json::json!(v)))
+                .collect();
+            serde_json::json!({"index": g, "parameters": params, "shard": g % shards + 1})
+        })
+        .collect();
+    let counts: Vec<usize> = (0..shards)
+        .map(|k| (0..n).filter(|g| g % shards == k).count())
+        .collect();
+    let v = serde_json::json!({
+        "campaign_id": info.id,
+        "campaign_hash": info.hash,
+        "variants": n,
+        "varied": info.varied,
+        "shards": shards,
+        "variants_per_shard": counts,
+        "table": table,
+        "probe": {
+            "fraction_of_t_end": PROBE_FRACTION,
+            "runs": probes,
+            "per_variant_s": mean,
+            "per_variant_is": "median of the runs",
+            "max_per_variant_s": max,
+        },
+        "estimate": {
+            "threads_per_task": threads,
+            "cpu_s": mean.map(|x| x * n as f64),
+            "per_task_wall_s": mean.map(|x| x * per_shard as f64 / threads as f64),
+            "output_values": values_per_variant * n,
+            "output_mb_uncompressed": (values_per_variant * n) as f64 * 8.0 / 1e6,
+        },
+        "backend": stage.backend,
+        "precision": stage.precision,
+    });
+    if args.model.json {
+        emit(&format!("{v}\n"))?;
+    } else {
+        println!(
+            "campaign {} ({}): {n} variants, {shards} shard(s) of ≤ {per_shard}",
+            info.id,
+            c.model_path.display()
+        );
+        for x in &probes {
+            println!(
+                "probe variant {}: {} steps to t = {:.6} in {:.4} s ({}), about {:.4} s per variant",
+                x.index, x.steps, x.t_probe, x.wall_s, x.status, x.per_variant_s
+            );
+        }
+        if let Some(mean) = mean {
+            println!(
+                "estimate: {:.1} CPU-s in all; {:.1} s per task on {threads} thread(s), plus \
+                 the merge",
+                mean * n as f64,
+                mean * per_shard as f64 / threads as f64
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `sweep --path`: a path per variant, in parallel; JSON per variant, optional campaign
+/// file with the point index as time and λ in `path_lambda`.
+pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
+    use latdyn::solver::path;
+    if args.accuracy.is_some() || args.frequency.is_some() || args.verify.is_some() {
+        bail!("sweep --path: --accuracy, --frequency and --verify apply to dynamic runs only");
+    }
+    let variants = latdyn::ensemble::variants(
+        &args.model.model,
+        &args.model.set,
+        &args.vary,
+        args.variants.as_deref(),
+    )?;
+    let (k, n) = args.shard.unwrap_or((1, 1));
+    let chosen: Vec<usize> = (0..variants.len()).filter(|i| i % n == k - 1).collect();
+    {
+        let m0 = args.model.load()?;
+        path::check_output_size(&m0, args.path.max_points, chosen.len())
+            .map_err(|e| anyhow!("{}: {e}", m0.path))?;
+    }
+    let mut models = Vec::with_capacity(chosen.len());
+    let mut opts = Vec::with_capacity(chosen.len());
+    for &gi in &chosen {
+        let mut sets = args.model.set.clone();
+        sets.extend(variants[gi].iter().cloned());
+        let m = model::load(&args.model.model, &sets)?;
+        opts.push(args.path.options(&m)?);
+        models.push(m);
+    }
+    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    let threads = args.threads.unwrap_or(cores);
+    let t0 = std::time::Instant::now();
+    let results = path::follow_all(&models, &opts, threads);
+    let wall = t0.elapsed().as_secs_f64();
+    let failed = results.iter().filter(|(r, _)| r.error.is_some()).count();
+    let mut out_err = None;
+    if let (Some(t), false) = (target, models.is_empty()) {
+        let npts = results
+            .iter()
+            .map(|(r, _)| r.lambda.len())
+            .max()
+            .unwrap_or(0);
+        let refs: Vec<&Model> = models.iter().collect();
+        let mut meta = path::campaign_meta(
+            &refs,
+            (0..npts).map(|i| i as f64).collect(),
+            std::env::args().collect::<Vec<_>>().join(" "),
+            threads,
+        );
+        meta.global_index = chosen.clone();
+        let written = latdyn::output::CampaignWriter::create_at(t, &meta).and_then(|mut w| {
+            for (v, (r, ws)) in results.iter().enumerate() {
+                path::write_variant(&mut w, v, r, *ws)?;
+            }
+            w.finish("complete")
+        });
+        out_err = written.err();
+    }
+    if args.model.json {
+        let vs: Vec<serde_json::Value> = results
+            .iter()
+            .zip(&models)
+            .zip(&chosen)
+            .map(|(((r, ws), m), gi)| {
+                let mut v = path::to_json(m, r, *ws);
+                v["index"] = serde_json::json!(gi);
+                v["parameters"] = serde_json::json!(variants[*gi]
+                    .iter()
+                    .map(|(k, x)| (k.clone(), *x))
+                    .collect::<std::collections::BTreeMap<_, _>>());
+                v
+            })
+            .collect();
+        let v = serde_json::json!({
+            "variants": vs,
+            "failed": failed,
+            "threads": threads,
+            "wall_s": wall,
+        });
+        emit(&format!("{v}\n"))?;
+    } else {
+        eprintln!(
+            "sweep --path {}: {} variants ({} failed) on {} threads in {:.3} s",
+            args.model.model.display(),
+            results.len(),
+            failed,
+            threads,
+            wall
+        );
+    }
+    if let Some(e) = out_err {
+        return Err(fail(EXIT_OUTPUT, e.to_string()));
+    }
+    if failed > 0 {
+        return Err(fail(
+            EXIT_FAILED,
+            format!(
+                "sweep --path: {failed} of {} variants failed",
+                results.len()
+            ),
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,299 @@
+//! The names of the campaign file's layout (see the [module docs](super#layout)) and the
+//! one reader of it: the writer ([`super::CampaignWriter`]), `merge` / `sweep --resume`
+//! ([`crate::campaign::CampaignFile`]) and the `plot` verb take every group, dataset and
+//! attribute name from here, and read through [`Reader`]. The status encoding is
+//! [`super::VariantState`] (`code`, `from_code`, `label`).
+
+use std::collections::HashMap;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+
+use rust_hdf5::format::global_heap::{decode_vlen_reference, GlobalHeapCollection};
+use rust_hdf5::format::FormatContext;
+use rust_hdf5::{DatatypeMessage, H5Dataset, H5File};
+
+use super::SensorMeta;
+
+/// A dataset of an open file (the HDF5 crate's handle).
+pub use rust_hdf5::H5Dataset as Dataset;
+
+/// Root attribute `format` of every campaign file.
+pub const FORMAT: &str = "latdyn-campaign";
+
+/// Root attributes.
+pub mod attr {
+    pub const LATDYN_VERSION: &str = "latdyn_version";
+    pub const COMMAND_LINE: &str = "command_line";
+    pub const BACKEND: &str = "backend";
+    pub const PRECISION: &str = "precision";
+    pub const ADAPTER: &str = "adapter";
+    pub const THREADS: &str = "threads";
+    pub const COMPLETE: &str = "complete";
+    pub const STATUS: &str = "status";
+    pub const FAILED_VARIANTS: &str = "failed_variants";
+    pub const FORMAT: &str = "format";
+    pub const FORMAT_VERSION: &str = "format_version";
+    pub const CAMPAIGN_ID: &str = "campaign_id";
+    pub const CAMPAIGN_HASH: &str = "campaign_hash";
+    /// on `/time` and `/xarray/time`
+    pub const UNITS: &str = "units";
+    /// on `/sensors/<NAME>`: the component names (str [C]); `UNITS`: their units
+    pub const COMPONENTS: &str = "components";
+    /// on `/status/state`: the state names indexed by code
+    pub const LABELS: &str = "labels";
+}
+
+/// Groups and datasets (paths from the root, without the leading `/`).
+pub const MODEL: &str = "model";
+pub const MODEL_SOURCE: &str = "model/source";
+pub const MODEL_PATH: &str = "model/path";
+pub const PARAMETERS: &str = "parameters";
+pub const PARAMETER_NAMES: &str = "parameters/names";
+pub const PARAMETER_VALUES: &str = "parameters/values";
+pub const TIME: &str = "time";
+pub const SENSORS: &str = "sensors";
+pub const DERIVED: &str = "derived";
+pub const STATUS: &str = "status";
+pub const STATE: &str = "status/state";
+pub const MESSAGE: &str = "status/message";
+pub const T_FAIL: &str = "status/t_fail";
+pub const STEPS: &str = "status/steps";
+pub const REJECTED_STEPS: &str = "status/rejected_steps";
+pub const WALL_S: &str = "status/wall_s";
+pub const ENERGY_GROWTH: &str = "status/energy_growth";
+pub const ENERGY_LOSS: &str = "status/energy_loss";
+pub const TIME_ERROR_ESTIMATE: &str = "status/time_error_estimate";
+pub const WARNINGS: &str = "status/warnings";
+pub const GLOBAL_INDEX: &str = "status/global_index";
+pub const CAMPAIGN: &str = "campaign";
+pub const DEFINITION: &str = "campaign/definition";
+pub const VARIED: &str = "campaign/varied";
+pub const VARIANTS: &str = "campaign/variants";
+pub const SET_NAMES: &str = "campaign/set_names";
+pub const SET_VALUES: &str = "campaign/set_values";
+pub const VERIFICATION: &str = "verification";
+pub const XARRAY: &str = "xarray";
+
+/// `sensors/<name>`
+pub fn sensor(name: &str) -> String {
+    format!("{SENSORS}/{name}")
+}
+
+/// `derived/<name>`
+pub fn derived(name: &str) -> String {
+    format!("{DERIVED}/{name}")
+}
+
+/// The last component of a layout path (the name inside its group).
+pub fn leaf(path: &str) -> &str {
+    path.rsplit_once('/').map_or(path, |(_, n)| n)
+}
+
+/// A campaign file open for reading. Errors are messages naming the dataset (`no
+/// /NAME (...)`, `reading /NAME: ...`); the caller adds the file path.
+pub struct Reader {
+    path: PathBuf,
+    file: H5File,
+}
+
+impl Reader {
+    /// Open `path` as HDF5; the error is the HDF5 library's message.
+    pub fn open(path: &Path) -> Result<Reader, String> {
+        let file = H5File::open(path).map_err(|e| e.to_string())?;
+        Ok(Reader {
+            path: path.to_path_buf(),
+            file,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The open file, for what this reader does not cover (the sensor samples of
+    /// `merge`, `/verification`).
+    pub fn file(&self) -> &H5File {
+        &self.file
+    }
+
+    /// A string attribute of the root group.
+    pub fn root_attr(&self, name: &str) -> Option<String> {
+        self.file.attr_string(name).ok()
+    }
+
+    /// A dataset, or `no /NAME (...)`.
+    pub fn dataset(&self, name: &str) -> Result<H5Dataset, String> {
+        self.file
+            .dataset(name)
+            .map_err(|e| format!("no /{name} ({e})"))
+    }
+
+    /// A float64 dataset's values (empty for an empty dataset).
+    pub fn f64s(&self, name: &str) -> Result<Vec<f64>, String> {
+        let d = self.dataset(name)?;
+        if d.total_elements() == 0 {
+            return Ok(Vec::new());
+        }
+        d.read_raw::<f64>()
+            .map_err(|e| format!("reading /{name}: {e}"))
+    }
+
+    /// An integer dataset's values as i64 (empty for an empty dataset).
+    pub fn i64s(&self, name: &str) -> Result<Vec<i64>, String> {
+        let d = self.dataset(name)?;
+        if d.total_elements() == 0 {
+            return Ok(Vec::new());
+        }
+        d.read_numeric_as::<i64>()
+            .map_err(|e| format!("reading /{name}: {e}"))
+    }
+
+    /// A string dataset's values (empty for an empty dataset).
+    pub fn strings(&self, name: &str) -> Result<Vec<String>, String> {
+        let d = self.dataset(name)?;
+        if d.total_elements() == 0 {
+            return Ok(Vec::new());
+        }
+        d.read_strings()
+            .map_err(|e| format!("reading /{name}: {e}"))
+    }
+
+    /// A scalar string dataset (`/model/source`, `/campaign/definition`), NUL padding
+    /// removed.
+    pub fn scalar_text(&self, name: &str) -> Result<String, String> {
+        self.dataset(name)?
+            .read_raw_bytes()
+            .map(|b| {
+                String::from_utf8_lossy(&b)
+                    .trim_end_matches('\0')
+                    .to_string()
+            })
+            .map_err(|e| format!("reading /{name}: {e}"))
+    }
+
+    /// Whether the group exists.
+    pub fn has_group(&self, group: &str) -> bool {
+        self.file.root_group().group(group).is_ok()
+    }
+
+    /// Names of the datasets in a group, sorted (empty if there is no such group).
+    pub fn names_in(&self, group: &str) -> Vec<String> {
+        let mut v = self
+            .file
+            .root_group()
+            .group(group)
+            .ok()
+            .and_then(|g| g.dataset_names().ok())
+            .unwrap_or_default();
+        v.sort();
+        v
+    }
+
+    /// A sensor's name, components and units from its attributes; `c0`, `c1`, … and no
+    /// units where they cannot be read. `ds` is the `/sensors/<name>` dataset.
+    pub fn sensor_meta(&self, name: &str, ds: &H5Dataset) -> SensorMeta {
+        let n_comp = ds.shape().get(2).copied().unwrap_or(1);
+        let mut components = self
+            .string_array_attr(ds, attr::COMPONENTS)
+            .unwrap_or_default();
+        if components.len() != n_comp {
+            components = (0..n_comp).map(|c| format!("c{c}")).collect();
+        }
+        let mut units = self.string_array_attr(ds, attr::UNITS).unwrap_or_default();
+        if units.len() != n_comp {
+            units = vec![String::new(); n_comp];
+        }
+        SensorMeta {
+            name: name.to_string(),
+            components,
+            units,
+        }
+    }
+
+    /// A string-array attribute of a dataset (variable-length or fixed-length strings).
+    ///
+    /// rust-hdf5 0.7.9 (the newest) reads only scalar string attributes, so
+    /// variable-length arrays are decoded here, the one place that knows the format:
+    /// the attribute holds one global-heap reference per element.
+    pub fn string_array_attr(&self, ds: &H5Dataset, name: &str) -> Option<Vec<String>> {
+        let attr = ds.attr(name).ok()?;
+        let raw = attr.read_raw().ok()?;
+        match attr.datatype().ok()? {
+            DatatypeMessage::FixedString { size, .. } => {
+                let size = (size as usize).max(1);
+                Some(
+                    raw.chunks(size)
+                        .map(|c| {
+                            String::from_utf8_lossy(c)
+                                .trim_end_matches(['\0', ' '])
+                                .to_string()
+                        })
+                        .collect(),
+                )
+            }
+            DatatypeMessage::VarLenString { .. } => self.vlen_strings(&raw).ok(),
+            _ => None,
+        }
+    }
+
+    /// Resolve variable-length string references through the file's global heap.
+    fn vlen_strings(&self, raw: &[u8]) -> std::io::Result<Vec<String>> {
+        let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, m.to_string());
+        let base = self.file.userblock_size();
+        let mut f = std::fs::File::open(&self.path)?;
+        let mut sb = [0u8; 16];
+        f.seek(SeekFrom::Start(base))?;
+        f.read_exact(&mut sb)?;
+        if &sb[..8] != b"\x89HDF\r\n\x1a\n" {
+            return Err(bad("no superblock signature"));
+        }
+        let (sizeof_addr, sizeof_size) = match sb[8] {
+            0 | 1 => (sb[13], sb[14]),
+            _ => (sb[9], sb[10]),
+        };
+        let ctx = FormatContext {
+            sizeof_addr,
+            sizeof_size,
+        };
+        let ref_size = 4 + sizeof_addr as usize + 4;
+        let ss = sizeof_size as usize;
+        let mut heaps: HashMap<u64, GlobalHeapCollection> = HashMap::new();
+        let mut out = Vec::with_capacity(raw.len() / ref_size);
+        for r in raw.chunks_exact(ref_size) {
+            let (_len, addr, index) =
+                decode_vlen_reference(r, &ctx).map_err(|e| bad(&e.to_string()))?;
+            if addr == 0 || addr == u64::MAX {
+                out.push(String::new());
+                continue;
+            }
+            if let std::collections::hash_map::Entry::Vacant(e) = heaps.entry(addr) {
+                let mut head = vec![0u8; 8 + ss];
+                f.seek(SeekFrom::Start(base + addr))?;
+                f.read_exact(&mut head)?;
+                if &head[..4] != b"GCOL" {
+                    return Err(bad("bad global heap signature"));
+                }
+                let mut n = 0u64;
+                for (i, b) in head[8..8 + ss].iter().enumerate() {
+                    n |= u64::from(*b) << (8 * i);
+                }
+                let size = usize::try_from(n).map_err(|_| bad("heap size"))?;
+                if !(16..=1 << 30).contains(&size) {
+                    return Err(bad("implausible global heap size"));
+                }
+                let mut buf = vec![0u8; size];
+                f.seek(SeekFrom::Start(base + addr))?;
+                f.read_exact(&mut buf)?;
+                let (coll, _) =
+                    GlobalHeapCollection::decode(&buf, &ctx).map_err(|e| bad(&e.to_string()))?;
+                e.insert(coll);
+            }
+            let idx = u16::try_from(index).map_err(|_| bad("heap index"))?;
+            let obj = heaps[&addr]
+                .get_object(idx)
+                .ok_or_else(|| bad("missing heap object"))?;
+            out.push(String::from_utf8_lossy(obj).into_owned());
+        }
+        Ok(out)
+    }
+}
