@@ -496,7 +496,18 @@ fn model_data_is_uploaded_once_not_per_dispatch() {
         let before = ctx.model_uploads();
         let mut out = vec![ElemOut::default(); n];
         let mut bytes = Vec::new();
+        // the first dispatch uploads this data; it may also rewrite other tests' resident
+        // segments of this shared context, when a test before it switched `corotate`
+        // (`lock` resets it), so the count that must stay flat starts after it
+        let mut first = before;
         for it in 0..6 {
+            if it == 1 {
+                first = ctx.model_uploads();
+                assert!(
+                    first.uploads > before.uploads && first.elements - before.elements >= n as u64,
+                    "{test}: the first dispatch uploads the model data"
+                );
+            }
             let copy = elems.clone();
             let t = if it % 2 == 0 {
                 ctx.evaluate(&copy, &inputs, true, &mut out)
@@ -507,8 +518,12 @@ fn model_data_is_uploaded_once_not_per_dispatch() {
             bytes.push(t.bytes_up);
         }
         let after = ctx.model_uploads();
-        assert_eq!(after.uploads - before.uploads, 1, "{test}: model uploads");
-        assert_eq!(after.elements - before.elements, n as u64);
+        assert_eq!(
+            after.uploads - first.uploads,
+            0,
+            "{test}: model uploads after the first of 6 dispatches"
+        );
+        assert_eq!(after.elements - first.elements, 0);
         // per dispatch: parameters (16 B) and the 36-word inputs, plus the 12-word
         // accelerations for the residual kernel; the slot indices only when they changed
         let inp = (16 + n * 36 * word) as u64;
@@ -531,7 +546,7 @@ fn model_data_is_uploaded_once_not_per_dispatch() {
         changed[17].props.ea *= 2.0;
         ctx.evaluate(&changed, &inputs, false, &mut out).unwrap();
         ctx.evaluate(&changed, &inputs, false, &mut out).unwrap();
-        assert_eq!(ctx.model_uploads().uploads - before.uploads, 2);
+        assert_eq!(ctx.model_uploads().uploads - after.uploads, 1);
     }
 }
 
