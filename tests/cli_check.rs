@@ -147,3 +147,25 @@ fn simulation_verbs_reject_broken_models_with_exit_code_2() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("solver.dt"));
 }
+
+/// `run --json`'s `stage_times_s` splits the Newton system's assembly time into the
+/// element stage and the rest: a beam scene spends time in both (the element stage was
+/// reported as 0 while the assembler's own split was never carried into the run's
+/// stats). Timings are only compared with zero and with each other's sum, never bounded.
+#[test]
+fn run_json_reports_the_element_stage_time_of_a_beam_scene() {
+    let out = latdyn(&[
+        "run",
+        "models/flapping_blade.toml",
+        "--set",
+        "t_end=0.5",
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let st = &v["stage_times_s"];
+    let el = st["element"].as_f64().expect("stage_times_s.element");
+    let asm = st["assembly"].as_f64().expect("stage_times_s.assembly");
+    assert!(el > 0.0, "element stage time {el} in {st}");
+    assert!(asm >= 0.0, "assembly time {asm} in {st}");
+}
