@@ -74,6 +74,26 @@ fn sweep(base: &[&str], extra: &[&str]) -> Command {
     latdyn(&args)
 }
 
+/// Shard `k` of `n` of the sweep `base` (plus `extra`) into `dir/s{k}.h5`; it must complete.
+fn shard(dir: &Path, base: &[&str], k: usize, n: usize, extra: &[&str]) -> PathBuf {
+    let p = dir.join(format!("s{k}.h5"));
+    let shard = format!("{k}/{n}");
+    let mut e = vec!["--shard", &shard, "-o", s(&p)];
+    e.extend_from_slice(extra);
+    let o = run(sweep(base, &e));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    p
+}
+
+/// `latdyn merge SHARDS... -o OUT` plus `extra`.
+fn merge(shards: &[&Path], out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["merge"];
+    args.extend(shards.iter().map(|p| s(p)));
+    args.extend_from_slice(&["-o", s(out)]);
+    args.extend_from_slice(extra);
+    run(latdyn(&args))
+}
+
 #[test]
 fn merged_shards_run_on_different_thread_counts_equal_the_single_sweep_bit_for_bit() {
     let dir = scratch("merge_threads");
@@ -226,22 +246,12 @@ fn resume_completes_a_merge_with_gaps_to_the_single_sweep_and_refuses_a_changed_
     let full = dir.join("full.h5");
     let o = run(sweep(PENDULUM, &["-o", s(&full)]));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let mut shards = Vec::new();
-    for k in [1, 3] {
-        let p = dir.join(format!("s{k}.h5"));
-        let shard = format!("{k}/3");
-        let o = run(sweep(PENDULUM, &["--shard", &shard, "-o", s(&p)]));
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        shards.push(p);
-    }
+    let (s1, s3) = (
+        shard(&dir, PENDULUM, 1, 3, &[]),
+        shard(&dir, PENDULUM, 3, 3, &[]),
+    );
     let merged = dir.join("m.h5");
-    let o = run(latdyn(&[
-        "merge",
-        s(&shards[0]),
-        s(&shards[1]),
-        "-o",
-        s(&merged),
-    ]));
+    let o = merge(&[&s1, &s3], &merged, &[]);
     assert_eq!(o.status.code(), Some(4), "{}", stderr(&o));
     let before = std::fs::read(&merged).unwrap();
 
@@ -379,22 +389,9 @@ fn merged_campaign_opens_in_xarray_with_named_dimensions_and_parameter_coordinat
         "--set",
         "t_end=0.3",
     ];
-    let mut shards = Vec::new();
-    for k in [1, 2] {
-        let p = dir.join(format!("s{k}.h5"));
-        let shard = format!("{k}/2");
-        let o = run(sweep(base, &["--shard", &shard, "-o", s(&p)]));
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        shards.push(p);
-    }
+    let shards = [shard(&dir, base, 1, 2, &[]), shard(&dir, base, 2, 2, &[])];
     let merged = dir.join("m.h5");
-    let o = run(latdyn(&[
-        "merge",
-        s(&shards[0]),
-        s(&shards[1]),
-        "-o",
-        s(&merged),
-    ]));
+    let o = merge(&[&shards[0], &shards[1]], &merged, &[]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // two varied parameters in a table out of order: the axis stays `variant`, and omega
     // is a coordinate on it (set_xindex, then sel)
@@ -492,18 +489,10 @@ fn merge_of_more_shards_than_variants_skips_the_empty_ones_and_equals_the_single
     let full = dir.join("full.h5");
     let o = run(sweep(base, &["-o", s(&full)]));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let mut args = vec!["merge".to_string()];
-    for k in 1..=5 {
-        let p = dir.join(format!("s{k}.h5"));
-        let shard = format!("{k}/5");
-        let o = run(sweep(base, &["--shard", &shard, "-o", s(&p)]));
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        args.push(s(&p).to_string());
-    }
+    let shards: Vec<PathBuf> = (1..=5).map(|k| shard(&dir, base, k, 5, &[])).collect();
     let merged = dir.join("m.h5");
-    args.extend(["-o".to_string(), s(&merged).to_string(), "--json".into()]);
-    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-    let o = run(latdyn(&refs));
+    let refs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
+    let o = merge(&refs, &merged, &["--json"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let r = json(&o);
     assert_eq!(r["completed"], 3);
@@ -514,25 +503,13 @@ fn merge_of_more_shards_than_variants_skips_the_empty_ones_and_equals_the_single
 #[test]
 fn merge_and_resume_carry_the_verification_of_shard_1() {
     let dir = scratch("merge_verify");
-    let mut shards = Vec::new();
-    for k in [1, 2] {
-        let p = dir.join(format!("s{k}.h5"));
-        let shard = format!("{k}/2");
-        let o = run(sweep(
-            PENDULUM,
-            &["--shard", &shard, "--verify", "2", "-o", s(&p)],
-        ));
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        shards.push(p);
-    }
+    let verify = ["--verify", "2"];
+    let shards = [
+        shard(&dir, PENDULUM, 1, 2, &verify),
+        shard(&dir, PENDULUM, 2, 2, &verify),
+    ];
     let merged = dir.join("m.h5");
-    let o = run(latdyn(&[
-        "merge",
-        s(&shards[1]),
-        s(&shards[0]),
-        "-o",
-        s(&merged),
-    ]));
+    let o = merge(&[&shards[1], &shards[0]], &merged, &[]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let read = |p: &Path, name: &str| -> Vec<f64> {
         rust_hdf5::H5File::open(p)

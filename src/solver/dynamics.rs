@@ -1146,12 +1146,6 @@ impl<'m> Integrator<'m> {
     pub fn run_stats(&self) -> RunStats {
         let mut st = self.stats.clone();
         st.times.add(&self.sys.times);
-        // the Newton system times whole assemblies; the assembler knows which part of
-        // them was the element stage (capped: it also counts assemblies made outside the
-        // Newton system, e.g. for the energies)
-        let element = self.asm.stage_times().element_s.min(st.times.assembly_s);
-        st.times.element_s += element;
-        st.times.assembly_s -= element;
         st.time_error_by_sensor = self.te.by_sensor();
         st.time_error_estimate = st
             .time_error_by_sensor
