@@ -75,6 +75,19 @@ pub struct EvalError {
     pub message: String,
 }
 
+/// One variant's elements in a batched call of the element stage
+/// ([`ElementEval::evaluate_batch`]): what [`ElementEval::evaluate`] (or
+/// [`ElementEval::evaluate_residual`] when `residual`) takes for one variant.
+pub struct EvalRequest<'a> {
+    pub elems: &'a [ElemData],
+    pub inputs: &'a [ElemIn],
+    pub out: &'a mut [ElemOut],
+    /// residual-only (a modified-Newton iteration): K, M and C may be skipped
+    pub residual: bool,
+    /// M, S, C as well
+    pub inertia: bool,
+}
+
 /// One element stage: `out[i]` from `elems[i]` and `inputs[i]` for every i. `inertia`
 /// asks for M, S, C as well. Implementations must write every field of every output.
 pub trait ElementEval: Send + Sync {
@@ -96,6 +109,21 @@ pub trait ElementEval: Send + Sync {
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
         self.evaluate(elems, inputs, inertia, out)
+    }
+    /// Several requests (the variants of a batch advancing in lockstep) in one call: one
+    /// dispatch on a GPU, SIMD lanes filled across request boundaries on the CPU. Every
+    /// request's outputs must be bit-identical to evaluating that request alone, so a
+    /// variant's results do not depend on the batch it ran in. The default evaluates the
+    /// requests one by one.
+    fn evaluate_batch(&self, reqs: &mut [EvalRequest<'_>]) -> Result<(), EvalError> {
+        for r in reqs.iter_mut() {
+            if r.residual {
+                self.evaluate_residual(r.elems, r.inputs, r.inertia, r.out)?;
+            } else {
+                self.evaluate(r.elems, r.inputs, r.inertia, r.out)?;
+            }
+        }
+        Ok(())
     }
     /// short name for logs and metadata, e.g. "cpu" or "gpu:llvmpipe f32"
     fn name(&self) -> String;
