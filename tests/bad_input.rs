@@ -291,3 +291,25 @@ fn expression_errors_are_located_without_library_internals() {
     // function pointers)
     assert!(!e.contains("left:") && !e.contains("0x"), "{e}");
 }
+
+#[test]
+fn mini_mast_bay_count_outside_one_to_eighteen_is_refused_at_its_parameter() {
+    usage_error(
+        &["check", "models/minimast.toml", "--set", "bays=0"],
+        "models/minimast.toml:54:1: field `parameters.bays`: is 0, below its minimum 1 (--set bays=0)",
+    );
+    usage_error(
+        &["run", "models/minimast.toml", "--set", "bays=19", "--json"],
+        "is 19, above its maximum 18",
+    );
+    usage_error(
+        &["check", "models/minimast.toml", "--set", "bays=2.5"],
+        "must be a whole number, is 2.5",
+    );
+    let out = latdyn(&["check", "models/minimast.toml", "--set", "bays=18"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

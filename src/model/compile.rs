@@ -777,6 +777,27 @@ impl Compiler<'_> {
                     e
                 })?,
             };
+            if let ParamValue::Full(t) = value.get_ref() {
+                let from = if overrides.iter().any(|(n, _)| n == name) {
+                    format!(" (--set {name}={v})")
+                } else {
+                    String::new()
+                };
+                let bad = |msg: String| self.err(key.span(), &f, format!("{msg}{from}"));
+                if t.integer == Some(true) && v.fract() != 0.0 {
+                    return Err(bad(format!("must be a whole number, is {v}")));
+                }
+                if let Some(lo) = self.opt_num(&t.min, &format!("{f}.min"))? {
+                    if v < lo {
+                        return Err(bad(format!("is {v}, below its minimum {lo}")));
+                    }
+                }
+                if let Some(hi) = self.opt_num(&t.max, &format!("{f}.max"))? {
+                    if v > hi {
+                        return Err(bad(format!("is {v}, above its maximum {hi}")));
+                    }
+                }
+            }
             self.params.push(name.clone(), v);
         }
         for (name, _) in overrides {
@@ -2135,6 +2156,31 @@ mod tests {
         // a derived parameter follows its override
         let m = compile_str(BEND45, "b.toml", &[("E".to_string(), 2.0e7)]).unwrap();
         assert_eq!(m.param("G"), Some(1.0e7));
+    }
+
+    #[test]
+    fn parameter_bounds_reject_values_outside_them_at_the_parameter_line() {
+        let text = CANTILEVER.replace(
+            "[parameters]\n",
+            "[parameters]\nn = { value = 2, min = 1, max = \"2*3\", integer = true }\n",
+        );
+        let line = text.lines().position(|l| l.starts_with("n = {")).unwrap() + 1;
+        assert!(compile_str(&text, "c.toml", &[]).is_ok());
+        assert!(compile_str(&text, "c.toml", &[("n".to_string(), 6.0)]).is_ok());
+        for (v, what) in [
+            (0.0, "is 0, below its minimum 1 (--set n=0)"),
+            (7.0, "is 7, above its maximum 6 (--set n=7)"),
+            (2.5, "must be a whole number, is 2.5 (--set n=2.5)"),
+        ] {
+            let e = compile_str(&text, "c.toml", &[("n".to_string(), v)]).unwrap_err();
+            assert_eq!(e.line, Some(line), "{e}");
+            assert_eq!(e.field.as_deref(), Some("parameters.n"), "{e}");
+            assert!(e.message.contains(what), "{e}");
+        }
+        // the file's own value is checked too, without a --set note
+        let bad = text.replace("value = 2,", "value = 9,");
+        let e = compile_str(&bad, "c.toml", &[]).unwrap_err();
+        assert!(e.message.ends_with("is 9, above its maximum 6"), "{e}");
     }
 
     #[test]

@@ -226,7 +226,8 @@ impl<'de, V: Deserialize<'de>> Deserialize<'de> for Table<V> {
 }
 
 /// `name = 1.0`, `name = "2*L"` (earlier parameters only) or
-/// `name = { value = 1.0, unit = "m", description = "..." }`.
+/// `name = { value = 1.0, unit = "m", description = "...", min = 0, max = 10,
+/// integer = true }` (the bounds are checked on the value and on every `--set`).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamValue {
     Plain(Num),
@@ -239,6 +240,12 @@ pub struct ParamTable {
     pub value: Spanned<Num>,
     pub unit: Option<String>,
     pub description: Option<String>,
+    /// smallest value the model is valid for (an expression of earlier parameters)
+    pub min: Option<Spanned<Num>>,
+    /// largest value the model is valid for
+    pub max: Option<Spanned<Num>>,
+    /// the value must be a whole number (a count: elements, bays)
+    pub integer: Option<bool>,
 }
 
 impl<'de> Deserialize<'de> for ParamValue {
