@@ -30,6 +30,7 @@ struct Gathered {
 }
 
 /// Scratch of the element stage, sized once per model (the hot path does not allocate).
+#[derive(Default)]
 struct Scratch {
     gathered: Vec<Gathered>,
     inputs: Vec<ElemIn>,
@@ -293,8 +294,10 @@ impl Assembler {
         let gfac = if c.inertia { 1.0 } else { c.load_factor };
         let has_gravity = g != [0.0; 3];
         let need_inertia = c.inertia || has_gravity;
-        let mut guard = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
-        let scratch = &mut *guard;
+        // taken out for the evaluation (moved, not copied), so no lock is held while a
+        // batch member waits for its round
+        let mut scratch =
+            std::mem::take(&mut *self.scratch.lock().unwrap_or_else(|p| p.into_inner()));
         // (a) gather: element states, chains, nodal velocities and accelerations
         for (ie, el) in model.elements.iter().enumerate() {
             let (n1, n2) = (el.n1, el.n2);
@@ -359,25 +362,21 @@ impl Assembler {
                 (t_el.elapsed().as_nanos() as u64, r)
             }
             Some(slot) => {
-                // the buffers travel to the driver and back (moved, not copied); the
-                // scratch lock is not held while the other members run
+                // the buffers travel to the driver and back (moved, not copied)
                 let req = Posted {
                     inputs: std::mem::take(&mut scratch.inputs),
                     out: std::mem::take(&mut scratch.out),
                     residual: !tangent,
                     inertia: need_inertia,
                 };
-                drop(guard);
                 let done = slot.evaluate(req).await;
-                guard = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
-                guard.inputs = done.inputs;
-                guard.out = done.out;
+                scratch.inputs = done.inputs;
+                scratch.out = done.out;
                 let own = (done.secs * 1e9) as u64;
                 waited = (t_el.elapsed().as_nanos() as u64).saturating_sub(own);
                 (own, done.result)
             }
         };
-        let scratch = &mut *guard;
         if let Err(e) = evaluated {
             // a failed backend poisons the residual: Newton reports no convergence and
             // the variant is marked failed with the time, instead of a panic
@@ -450,6 +449,7 @@ impl Assembler {
                 }
             }
         }
+        *self.scratch.lock().unwrap_or_else(|p| p.into_inner()) = scratch;
         waited
     }
 }

@@ -34,9 +34,9 @@ use crate::output::{
     VariantStatus,
 };
 use crate::sensors;
+use crate::solver::batch::{drive, panic_message, BatchCounts, Member, Slot};
 use crate::solver::dynamics::StageTimes;
 use crate::solver::dynamics::{self, DynamicsError};
-use crate::solver::batch::{drive, panic_message, BatchCounts, Member, Slot};
 use crate::solver::linear::NewtonSystem;
 
 #[derive(Debug, thiserror::Error)]
@@ -888,15 +888,11 @@ fn run_core(
             member_variant.push(v);
         }
         let cpu: Arc<dyn ElementEval> = Arc::new(CpuEval);
-        let n = drive(
-            eval.as_deref().unwrap_or(&*cpu),
-            members,
-            |k, result| {
-                let v = member_variant[k];
-                let wall = t0.elapsed().as_secs_f64();
-                outcomes[v - batch.start] = Some(finish(v, result, wall));
-            },
-        );
+        let n = drive(eval.as_deref().unwrap_or(&*cpu), members, |k, result| {
+            let v = member_variant[k];
+            let wall = t0.elapsed().as_secs_f64();
+            outcomes[v - batch.start] = Some(finish(v, result, wall));
+        });
         counts.lock().unwrap_or_else(|p| p.into_inner()).add(&n);
         outcomes.into_iter().flatten().collect()
     };

@@ -7,8 +7,8 @@
 //! sparse LU every iteration on a pattern analysed once. A step whose Newton iteration
 //! fails or produces a non-finite value is halved and retried down to `dt_min`.
 
-pub use super::linear::StageTimes;
 use super::batch::{block_on, drive, Member, Slot};
+pub use super::linear::StageTimes;
 use super::linear::{norm_inf, Convergence, NewtonSystem};
 use super::statics::worst_dof;
 use crate::assembly::{Assembler, AssemblyInfo, Coeffs};
@@ -540,12 +540,7 @@ impl<'m> Integrator<'m> {
     /// size h: `accuracy · h / t_end`, so that the accumulated error meets `accuracy`; 1
     /// without a target) and leaves per sensor, per component the values and |δy| in
     /// `ys` and `dys`.
-    async fn step_error(
-        &mut self,
-        h: f64,
-        ys: &mut Vec<Vec<f64>>,
-        dys: &mut Vec<Vec<f64>>,
-    ) -> f64 {
+    async fn step_error(&mut self, h: f64, ys: &mut Vec<Vec<f64>>, dys: &mut Vec<Vec<f64>>) -> f64 {
         let model = self.model;
         let p = self.p;
         let cq = p.beta - 1.0 / 6.0 + 0.5 * (p.alpha_m - p.alpha_f);
