@@ -213,15 +213,23 @@ fn a_failing_variant_leaves_its_batch_and_the_others_finish_bit_identical() {
 
 #[test]
 fn adaptive_steps_and_their_probe_runs_batch_bit_identically() {
-    let vs: Vec<Vec<(String, f64)>> = [20.0, 26.0, 33.0, 40.0]
+    // with a 1 % target the spin-up beam rejects some steps for accuracy
+    let vs: Vec<Vec<(String, f64)>> = [4.0, 5.0, 6.0, 7.0, 8.0]
         .iter()
-        .map(|w| vec![("omega".to_string(), *w), ("t_end".to_string(), 0.3)])
+        .map(|ws| {
+            vec![
+                ("ws".to_string(), *ws),
+                ("Ts".to_string(), 1.0),
+                ("t_end".to_string(), 1.0),
+            ]
+        })
         .collect();
     let c = Campaign {
-        accuracy: Some(1e-3),
-        ..campaign("models/flapping_blade.toml", vs.clone(), 1)
+        accuracy: Some(1e-2),
+        ..campaign("models/spinup_beam.toml", vs.clone(), 1)
     };
-    for (b, out, _) in run_batched(&c, &[1, vs.len()]) {
+    for (b, out, _) in run_batched(&c, &[1, 3, vs.len()]) {
+        assert!(out.iter().any(|o| o.rejected_steps > 0));
         for o in &out {
             assert_same_as_single(&c, o, &format!("adaptive, batch {b}"));
         }
@@ -244,7 +252,7 @@ fn a_stop_mid_batch_interrupts_the_running_variants_with_their_samples_so_far() 
     let finished = AtomicBool::new(false);
     let out = std::thread::scope(|sc| {
         sc.spawn(|| {
-            while counter.calls.load(Ordering::Relaxed) < 50 && !finished.load(Ordering::SeqCst) {
+            while counter.calls.load(Ordering::Relaxed) < 400 && !finished.load(Ordering::SeqCst) {
                 std::thread::sleep(std::time::Duration::from_millis(1));
             }
             stop.store(true, Ordering::SeqCst);
@@ -257,7 +265,7 @@ fn a_stop_mid_batch_interrupts_the_running_variants_with_their_samples_so_far() 
     for o in &out {
         assert_eq!(o.state, VariantState::Interrupted, "{}", o.message);
         let h = o.history.as_ref().unwrap();
-        assert!(!h.t.is_empty());
+        assert!(h.t.len() > 1, "{:?}", h.t);
         // what it sampled before the stop is what its single run samples
         let mut m = latdyn::model::load(&c.model_path, &c.variants[o.global_index]).unwrap();
         m.solver.t_end = h.t[h.t.len() - 1];
