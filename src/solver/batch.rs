@@ -49,7 +49,7 @@ enum SlotState {
 
 /// Where one variant of a batch posts its element-stage request and picks up the result.
 /// Only the driver's thread touches it; the mutex makes it shareable without `unsafe`.
-pub struct Slot(Mutex<SlotState>);
+pub(crate) struct Slot(Mutex<SlotState>);
 
 impl Slot {
     pub(crate) fn new() -> Arc<Slot> {
