@@ -377,6 +377,8 @@ pub struct Outcome {
     pub steps: usize,
     pub rejected_steps: usize,
     pub newton_iterations: usize,
+    /// from its batch's start to its end: the variants of a batch share one thread, so
+    /// this includes the other variants' work until it ended
     pub wall_s: f64,
     /// wall time per stage (element, assembly, factorization, output incl. file writes)
     pub times: StageTimes,
