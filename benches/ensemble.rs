@@ -90,6 +90,7 @@ fn campaign(
         base: vec![("t_end".into(), 0.1)],
         variants,
         threads,
+        batch: latdyn::ensemble::DEFAULT_BATCH,
         output,
         shard: None,
         accuracy: None,

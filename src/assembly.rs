@@ -20,6 +20,7 @@ use crate::element::{self, CpuEval, ElemIn, ElemOut, ElementEval, Mat12, Vec12, 
 use crate::joint::{self, Chain, State};
 use crate::math::*;
 use crate::model::Model;
+use crate::solver::batch::{block_on, Posted, Slot};
 
 /// Per-element gathered data the scatter needs besides the element outputs.
 #[derive(Clone, Copy)]
@@ -29,6 +30,7 @@ struct Gathered {
 }
 
 /// Scratch of the element stage, sized once per model (the hot path does not allocate).
+#[derive(Default)]
 struct Scratch {
     gathered: Vec<Gathered>,
     inputs: Vec<ElemIn>,
@@ -42,6 +44,10 @@ pub struct AssemblyTimes {
     pub element_s: f64,
     /// everything else in `evaluate`: gather, projection through the chains, scatter
     pub assembly_s: f64,
+    /// time a batch member spent waiting for its round beyond its own share of the
+    /// element stage (the other members' work; zero outside a batch), in neither of the
+    /// above
+    pub waiting_s: f64,
     pub calls: u64,
 }
 
@@ -117,8 +123,12 @@ pub struct Assembler {
     pub eval: Arc<dyn ElementEval>,
     /// uncontended: `evaluate` takes `&self`, and one assembler serves one solver thread
     scratch: Mutex<Scratch>,
+    /// a batch member's slot (see [`crate::solver::batch`]): [`Assembler::evaluate_async`]
+    /// posts its element stage there instead of calling `eval`
+    slot: Option<Arc<Slot>>,
     element_ns: AtomicU64,
     total_ns: AtomicU64,
+    wait_ns: AtomicU64,
     calls: AtomicU64,
 }
 
@@ -171,9 +181,21 @@ impl Assembler {
                 ],
                 out: vec![ElemOut::default(); ne],
             }),
+            slot: None,
             element_ns: AtomicU64::new(0),
             total_ns: AtomicU64::new(0),
+            wait_ns: AtomicU64::new(0),
             calls: AtomicU64::new(0),
+        }
+    }
+
+    /// An assembler of a batch member: [`Assembler::evaluate_async`] posts the element
+    /// stage to `slot`, for the batch driver to evaluate with the other members' (`eval`
+    /// is then the driver's stage, asked only for its precision and name).
+    pub(crate) fn batched(model: &Model, eval: Arc<dyn ElementEval>, slot: Arc<Slot>) -> Assembler {
+        Assembler {
+            slot: Some(slot),
+            ..Assembler::with_eval(model, eval)
         }
     }
 
@@ -184,6 +206,7 @@ impl Assembler {
         AssemblyTimes {
             element_s: el,
             assembly_s: (tot - el).max(0.0),
+            waiting_s: self.wait_ns.load(Ordering::Relaxed) as f64 * 1e-9,
             calls: self.calls.load(Ordering::Relaxed),
         }
     }
@@ -196,8 +219,37 @@ impl Assembler {
     /// A dispatcher over the terms, in a fixed order (the sums are bit-reproducible):
     /// elements, rigid bodies, nodal loads, hinge springs, then identity rows for frozen
     /// dofs.
+    ///
+    /// The element stage runs on the spot, also for a batch member's assembler (statics,
+    /// the pattern discovery).
     pub fn evaluate(
         &self,
+        model: &Model,
+        s: &State,
+        c: Coeffs,
+        gen: &mut [f64],
+        sink: Option<&mut dyn Sink>,
+    ) -> AssemblyInfo {
+        block_on(self.evaluate_in(None, model, s, c, gen, sink))
+    }
+
+    /// [`Assembler::evaluate`] with the element stage as an await point: a batch member's
+    /// assembler posts it to its slot and resumes when the batch driver has evaluated it.
+    pub async fn evaluate_async(
+        &self,
+        model: &Model,
+        s: &State,
+        c: Coeffs,
+        gen: &mut [f64],
+        sink: Option<&mut dyn Sink>,
+    ) -> AssemblyInfo {
+        self.evaluate_in(self.slot.as_deref(), model, s, c, gen, sink)
+            .await
+    }
+
+    async fn evaluate_in(
+        &self,
+        slot: Option<&Slot>,
         model: &Model,
         s: &State,
         c: Coeffs,
@@ -207,37 +259,45 @@ impl Assembler {
         gen.iter_mut().for_each(|x| *x = 0.0);
         let mut info = AssemblyInfo::default();
         let t_start = Instant::now();
-        self.elements(model, s, c, gen, sink.as_deref_mut(), &mut info);
+        let waited = self
+            .elements(slot, model, s, c, gen, sink.as_deref_mut(), &mut info)
+            .await;
         bodies(model, s, c, gen, sink.as_deref_mut(), &mut info);
         loads(model, s, c, gen, sink.as_deref_mut(), &mut info);
         hinges(model, s, c, gen, sink.as_deref_mut(), &mut info);
         if let Some(sk) = sink {
             frozen_rows(model, s, sk);
         }
+        let span = t_start.elapsed().as_nanos() as u64;
         self.total_ns
-            .fetch_add(t_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            .fetch_add(span.saturating_sub(waited), Ordering::Relaxed);
         self.calls.fetch_add(1, Ordering::Relaxed);
         info
     }
 
     /// The beam elements: gather each element's state, chains, velocities and
-    /// accelerations; run the element stage on all of them at once; scatter forces and
-    /// matrices through the chains.
-    fn elements(
+    /// accelerations; run the element stage on all of them at once (on the spot, or posted
+    /// to `slot`); scatter forces and matrices through the chains. Returns the time [ns]
+    /// spent waiting on the slot beyond this request's share of its round.
+    #[allow(clippy::too_many_arguments)]
+    async fn elements(
         &self,
+        slot: Option<&Slot>,
         model: &Model,
         s: &State,
         c: Coeffs,
         gen: &mut [f64],
         mut sink: Option<&mut (dyn Sink + '_)>,
         info: &mut AssemblyInfo,
-    ) {
+    ) -> u64 {
         let g = model.gravity;
         let gfac = if c.inertia { 1.0 } else { c.load_factor };
         let has_gravity = g != [0.0; 3];
         let need_inertia = c.inertia || has_gravity;
-        let mut guard = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
-        let scratch = &mut *guard;
+        // taken out for the evaluation (moved, not copied), so no lock is held while a
+        // batch member waits for its round
+        let mut scratch =
+            std::mem::take(&mut *self.scratch.lock().unwrap_or_else(|p| p.into_inner()));
         // (a) gather: element states, chains, nodal velocities and accelerations
         for (ie, el) in model.elements.iter().enumerate() {
             let (n1, n2) = (el.n1, el.n2);
@@ -277,24 +337,45 @@ impl Assembler {
             };
         }
         // (b) the element stage
-        let t_el = Instant::now();
         // without a Jacobian to assemble, K, M and C are not needed (unless stiffness-
         // proportional damping puts K into the residual)
         let tangent = sink.is_some() || model.solver.rayleigh_beta != 0.0;
-        let evaluated = if tangent {
-            self.eval.evaluate(
-                &model.elem_data,
-                &scratch.inputs,
-                need_inertia,
-                &mut scratch.out,
-            )
-        } else {
-            self.eval.evaluate_residual(
-                &model.elem_data,
-                &scratch.inputs,
-                need_inertia,
-                &mut scratch.out,
-            )
+        let mut waited = 0;
+        let t_el = Instant::now();
+        let (element_ns, evaluated) = match slot {
+            None => {
+                let r = if tangent {
+                    self.eval.evaluate(
+                        &model.elem_data,
+                        &scratch.inputs,
+                        need_inertia,
+                        &mut scratch.out,
+                    )
+                } else {
+                    self.eval.evaluate_residual(
+                        &model.elem_data,
+                        &scratch.inputs,
+                        need_inertia,
+                        &mut scratch.out,
+                    )
+                };
+                (t_el.elapsed().as_nanos() as u64, r)
+            }
+            Some(slot) => {
+                // the buffers travel to the driver and back (moved, not copied)
+                let req = Posted {
+                    inputs: std::mem::take(&mut scratch.inputs),
+                    out: std::mem::take(&mut scratch.out),
+                    residual: !tangent,
+                    inertia: need_inertia,
+                };
+                let done = slot.evaluate(req).await;
+                scratch.inputs = done.inputs;
+                scratch.out = done.out;
+                let own = (done.secs * 1e9) as u64;
+                waited = (t_el.elapsed().as_nanos() as u64).saturating_sub(own);
+                (own, done.result)
+            }
         };
         if let Err(e) = evaluated {
             // a failed backend poisons the residual: Newton reports no convergence and
@@ -304,8 +385,8 @@ impl Assembler {
                 o.f = [f64::NAN; NDOF];
             }
         }
-        self.element_ns
-            .fetch_add(t_el.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        self.element_ns.fetch_add(element_ns, Ordering::Relaxed);
+        self.wait_ns.fetch_add(waited, Ordering::Relaxed);
         // (c) scatter
         for (ie, el) in model.elements.iter().enumerate() {
             let ed = &model.elem_data[ie];
@@ -368,6 +449,8 @@ impl Assembler {
                 }
             }
         }
+        *self.scratch.lock().unwrap_or_else(|p| p.into_inner()) = scratch;
+        waited
     }
 }
 

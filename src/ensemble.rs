@@ -2,11 +2,14 @@
 //!
 //! Every variant is compiled from the same file with its own parameter values; all must
 //! share the topology (nodes, elements, coordinates, sensors) and the output time grid,
-//! which is checked before any work starts. Variants run in parallel on a rayon pool,
-//! each with its own state and step control, so a variant that cuts its step slows only
-//! itself, and one that fails is marked failed while the others complete. Each variant
-//! runs exactly the code path of a single `run`, so its numbers are bit-identical to
-//! running it alone. Each finished variant's samples go into the campaign file, which is
+//! which is checked before any work starts. Variants are split into batches (in variant
+//! order, see [`batch_size`]) that run in parallel on a rayon pool; the variants of a
+//! batch advance in lockstep on one worker, each with its own state and step control, and
+//! every round of their element stages is one call of the element stage
+//! ([`crate::solver::batch`]). A variant that cuts its step only posts in more rounds, and
+//! one that fails is marked failed while the others complete. Each variant runs exactly
+//! the code path of a single `run` (a batch of one), so its numbers are bit-identical to
+//! running it alone, in any batch. Each finished variant's samples go into the campaign file, which is
 //! flushed (rewritten atomically) at most every 2 s and at the end; on Ctrl-C the
 //! variants in flight stop before their next time step, their samples so far are kept,
 //! and the file is finished as "interrupted". If the file cannot be written mid-campaign
@@ -22,7 +25,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::assembly::Assembler;
-use crate::element::ElementEval;
+use crate::element::{CpuEval, ElementEval};
 use crate::joint::State;
 use crate::linalg::SparseLuSymbolic;
 use crate::model::{self, Model};
@@ -31,6 +34,7 @@ use crate::output::{
     VariantStatus,
 };
 use crate::sensors;
+use crate::solver::batch::{drive, panic_message, BatchCounts, Member, Slot};
 use crate::solver::dynamics::StageTimes;
 use crate::solver::dynamics::{self, DynamicsError};
 use crate::solver::linear::NewtonSystem;
@@ -49,6 +53,17 @@ pub enum EnsembleError {
 /// Shortest time between two flushes of the campaign file [s]: each flush rewrites the
 /// file, so flushing after every short variant would serialise the workers.
 const FLUSH_INTERVAL_S: f64 = 2.0;
+
+/// Default variants per batch of a CPU campaign (`sweep --batch`), measured in
+/// docs/bench/batch.md.
+pub const DEFAULT_BATCH: usize = 8;
+
+/// Variants per batch: `batch` (at least 1), but no more than keep every one of `threads`
+/// workers busy: a batch runs on one worker, so 10 variants in batches of 8 on 2 threads
+/// would leave one thread with 8 variants and the other with 2.
+pub fn batch_size(batch: usize, variants: usize, threads: usize) -> usize {
+    batch.clamp(1, variants.div_ceil(threads.max(1)).max(1))
+}
 
 /// A `--vary NAME=START:STOP:COUNT` range.
 #[derive(Clone, Debug, PartialEq)]
@@ -330,6 +345,9 @@ pub struct Campaign {
     /// per-variant overrides (all rows name the same parameters)
     pub variants: Vec<Vec<(String, f64)>>,
     pub threads: usize,
+    /// variants per batch: advanced in lockstep on one worker thread, their element
+    /// stages evaluated together (see [`crate::solver::batch`] and [`batch_size`])
+    pub batch: usize,
     pub output: Option<PathBuf>,
     /// (K, N): run only variants with index % N == K − 1
     pub shard: Option<(usize, usize)>,
@@ -359,6 +377,8 @@ pub struct Outcome {
     pub steps: usize,
     pub rejected_steps: usize,
     pub newton_iterations: usize,
+    /// from its batch's start to its end: the variants of a batch share one thread, so
+    /// this includes the other variants' work until it ended
     pub wall_s: f64,
     /// wall time per stage (element, assembly, factorization, output incl. file writes)
     pub times: StageTimes,
@@ -389,6 +409,9 @@ pub struct CampaignRun {
     pub output_error: Option<OutputError>,
     /// what `--verify` measured (see [`run_verified_to`])
     pub verification: Option<crate::verify::Verification>,
+    /// calls of the element stage and the requests they carried (see
+    /// [`crate::solver::batch`])
+    pub batch: BatchCounts,
 }
 
 /// Compiled variants with their checked common layout.
@@ -703,33 +726,157 @@ fn run_core(
         .num_threads(c.threads.max(1))
         .build()
         .map_err(|e| EnsembleError::Invalid(format!("thread pool: {e}")))?;
-    let outcomes: Vec<Outcome> = pool.install(|| {
-        (0..nv)
-            .into_par_iter()
-            .map(|v| {
-                let m = &p.models[v];
-                // the variant's row in the file
+    let counts = Mutex::new(BatchCounts::default());
+    // What becomes of a variant once its run ended (or panicked): its outcome, and its
+    // samples and status in the file (written when the variant ends, completed, failed or
+    // interrupted alike, so workers do not contend for the writer per sample).
+    let finish = |v: usize, result: std::thread::Result<dynamics::RunResult>, wall: f64| {
+        let m = &p.models[v];
+        let row = rows.map_or(v, |r| r[v]);
+        let mut panicked = None;
+        let (hist, mut stats, err) = match result {
+            Ok(r) => r,
+            Err(panic) => {
+                panicked = Some(format!(
+                    "internal error: {} (this is a bug in latdyn; please report it)",
+                    panic_message(&*panic)
+                ));
+                (
+                    dynamics::History {
+                        t: Vec::new(),
+                        values: vec![Vec::new(); m.sensors.len()],
+                    },
+                    dynamics::RunStats::default(),
+                    None,
+                )
+            }
+        };
+        let (state, message, t_fail) = match (&err, &panicked) {
+            (_, Some(msg)) => (VariantState::Failed, msg.clone(), f64::NAN),
+            (None, None) => (VariantState::Completed, String::new(), f64::NAN),
+            (Some(e @ DynamicsError::Interrupted { .. }), _) => {
+                let msg = if output_failed.load(Ordering::SeqCst) {
+                    format!("{e} (stopped: the output file could not be written)")
+                } else {
+                    e.to_string()
+                };
+                (VariantState::Interrupted, msg, e.time())
+            }
+            (Some(e), _) => (VariantState::Failed, e.to_string(), e.time()),
+        };
+        let summaries = summarize(m, &hist);
+        let mut derived = Vec::new();
+        let mut warnings = stats.warnings();
+        if let (Some((name, comp)), VariantState::Completed) = (&c.frequency_sensor, state) {
+            if let Some(k) = m.sensor_index(name) {
+                let x: Vec<f64> = hist.values[k].iter().map(|s| s[*comp]).collect();
+                let dt = hist.t.get(1).map(|t1| t1 - hist.t[0]).unwrap_or(0.0);
+                let fb = crate::frequency::first_bending(m, (k, *comp), &x, dt);
+                derived.push(("first_bending_hz".to_string(), fb.hz));
+                if let Some(e) = fb.eig_hz {
+                    derived.push(("first_bending_eig_hz".to_string(), e));
+                }
+                warnings.extend(fb.warnings);
+            }
+        }
+        let t_out = Instant::now();
+        if let Some(w) = &writer {
+            let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
+            let st = VariantStatus {
+                state,
+                message: message.clone(),
+                t_fail,
+                steps: stats.steps as u64,
+                rejected_steps: stats.rejected_steps as u64,
+                wall_s: wall,
+                energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
+                energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
+                time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
+                warnings: warnings.join("\n"),
+            };
+            let mut r = Ok(());
+            for ti in 0..hist.t.len() {
+                let vals: Vec<Vec<f64>> = hist.values.iter().map(|s| s[ti].clone()).collect();
+                r = r.and_then(|_| g.write_samples(row, ti, &vals));
+            }
+            r = r.and_then(|_| g.set_status(row, &st));
+            for (n, x) in &derived {
+                r = r.and_then(|_| g.set_derived(n, row, *x));
+            }
+            // a flush rewrites the whole file: at most every few seconds
+            let mut last = last_flush.lock().unwrap_or_else(|p| p.into_inner());
+            if last.elapsed().as_secs_f64() > FLUSH_INTERVAL_S {
+                r = r.and_then(|_| g.flush());
+                *last = Instant::now();
+            }
+            if let Err(e) = r {
+                record_err(e);
+            }
+        }
+        stats.times.output_s += t_out.elapsed().as_secs_f64();
+        let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress(d, nv);
+        Outcome {
+            global_index: p.global_index[v],
+            parameters: c.variants[p.global_index[v]].clone(),
+            state,
+            message,
+            t_fail,
+            steps: stats.steps,
+            rejected_steps: stats.rejected_steps,
+            newton_iterations: stats.newton_iterations,
+            wall_s: wall,
+            times: stats.times,
+            sensors: summaries,
+            derived,
+            energy_growth: stats.energy_growth,
+            energy_loss: stats.energy_loss,
+            time_error_estimate: stats.time_error_estimate,
+            warnings,
+            history: keep_history.then_some(hist),
+            panicked: panicked.is_some(),
+        }
+    };
+    // One batch: its variants advance in lockstep on one worker, each round of their
+    // element stages one call of the batch's stage.
+    let run_batch = |batch: std::ops::Range<usize>| -> Vec<Outcome> {
+        let mut outcomes: Vec<Option<Outcome>> = vec![None; batch.len()];
+        let eval = stage.make.as_ref().map(|make| make());
+        let ctx = dynamics::RunContext {
+            stop: Some(stop),
+            symbolic: p.symbolic.as_ref(),
+            eval: eval.clone(),
+        };
+        let t0 = Instant::now();
+        let mut members = Vec::with_capacity(batch.len());
+        let mut member_variant = Vec::with_capacity(batch.len());
+        for v in batch.clone() {
+            if output_failed.load(Ordering::SeqCst) {
+                outcomes[v - batch.start] = Some(not_run(c, p, v, keep_history));
+                continue;
+            }
+            if let Some(w) = &writer {
+                let st = VariantStatus {
+                    state: VariantState::Running,
+                    ..Default::default()
+                };
                 let row = rows.map_or(v, |r| r[v]);
-                if output_failed.load(Ordering::SeqCst) {
-                    return not_run(c, p, v, keep_history);
+                if let Err(e) = w
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .set_status(row, &st)
+                {
+                    record_err(e);
                 }
-                let t0 = Instant::now();
-                if let Some(w) = &writer {
-                    let st = VariantStatus {
-                        state: VariantState::Running,
-                        ..Default::default()
-                    };
-                    if let Err(e) = w
-                        .lock()
-                        .unwrap_or_else(|p| p.into_inner())
-                        .set_status(row, &st)
-                    {
-                        record_err(e);
-                    }
-                }
-                // samples go to the file when the variant ends (completed, failed or
-                // interrupted alike), so workers do not contend for the writer per sample
-                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            }
+            let m = &p.models[v];
+            let slot = Slot::new();
+            let ctx = &ctx;
+            let run_slot = Arc::clone(&slot);
+            members.push(Member {
+                elems: &m.elem_data,
+                slot,
+                run: Box::pin(async move {
                     // fault injection for tests/output_faults.rs: a panic inside the
                     // first variant's simulation (unset: nothing happens)
                     if v == 0
@@ -737,126 +884,28 @@ fn run_core(
                     {
                         panic!("injected panic in a variant (LATDYN_FAULT_PANIC=variant)");
                     }
-                    let ctx = dynamics::RunContext {
-                        stop: Some(stop),
-                        symbolic: p.symbolic.as_ref(),
-                        eval: stage.make.as_ref().map(|make| make()),
-                    };
-                    dynamics::run_in(m, &ctx, |_, _| {})
-                }));
-                let wall = t0.elapsed().as_secs_f64();
-                let mut panicked = None;
-                let (hist, mut stats, err) = match result {
-                    Ok(r) => r,
-                    Err(panic) => {
-                        let msg = panic
-                            .downcast_ref::<String>()
-                            .cloned()
-                            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                            .unwrap_or_else(|| "unknown".into());
-                        panicked = Some(format!(
-                            "internal error: {msg} (this is a bug in latdyn; please report it)"
-                        ));
-                        (
-                            dynamics::History {
-                                t: Vec::new(),
-                                values: vec![Vec::new(); m.sensors.len()],
-                            },
-                            dynamics::RunStats::default(),
-                            None,
-                        )
-                    }
-                };
-                let (state, message, t_fail) = match (&err, &panicked) {
-                    (_, Some(msg)) => (VariantState::Failed, msg.clone(), f64::NAN),
-                    (None, None) => (VariantState::Completed, String::new(), f64::NAN),
-                    (Some(e @ DynamicsError::Interrupted { .. }), _) => {
-                        let msg = if output_failed.load(Ordering::SeqCst) {
-                            format!("{e} (stopped: the output file could not be written)")
-                        } else {
-                            e.to_string()
-                        };
-                        (VariantState::Interrupted, msg, e.time())
-                    }
-                    (Some(e), _) => (VariantState::Failed, e.to_string(), e.time()),
-                };
-                let summaries = summarize(m, &hist);
-                let mut derived = Vec::new();
-                let mut warnings = stats.warnings();
-                if let (Some((name, comp)), VariantState::Completed) = (&c.frequency_sensor, state)
-                {
-                    if let Some(k) = m.sensor_index(name) {
-                        let x: Vec<f64> = hist.values[k].iter().map(|s| s[*comp]).collect();
-                        let dt = hist.t.get(1).map(|t1| t1 - hist.t[0]).unwrap_or(0.0);
-                        let fb = crate::frequency::first_bending(m, (k, *comp), &x, dt);
-                        derived.push(("first_bending_hz".to_string(), fb.hz));
-                        if let Some(e) = fb.eig_hz {
-                            derived.push(("first_bending_eig_hz".to_string(), e));
-                        }
-                        warnings.extend(fb.warnings);
-                    }
-                }
-                let t_out = Instant::now();
-                if let Some(w) = &writer {
-                    let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
-                    let st = VariantStatus {
-                        state,
-                        message: message.clone(),
-                        t_fail,
-                        steps: stats.steps as u64,
-                        rejected_steps: stats.rejected_steps as u64,
-                        wall_s: wall,
-                        energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
-                        energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
-                        time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
-                        warnings: warnings.join("\n"),
-                    };
-                    let mut r = Ok(());
-                    for ti in 0..hist.t.len() {
-                        let vals: Vec<Vec<f64>> =
-                            hist.values.iter().map(|s| s[ti].clone()).collect();
-                        r = r.and_then(|_| g.write_samples(row, ti, &vals));
-                    }
-                    r = r.and_then(|_| g.set_status(row, &st));
-                    for (n, x) in &derived {
-                        r = r.and_then(|_| g.set_derived(n, row, *x));
-                    }
-                    // a flush rewrites the whole file: at most every few seconds
-                    let mut last = last_flush.lock().unwrap_or_else(|p| p.into_inner());
-                    if last.elapsed().as_secs_f64() > FLUSH_INTERVAL_S {
-                        r = r.and_then(|_| g.flush());
-                        *last = Instant::now();
-                    }
-                    if let Err(e) = r {
-                        record_err(e);
-                    }
-                }
-                stats.times.output_s += t_out.elapsed().as_secs_f64();
-                let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-                progress(d, nv);
-                Outcome {
-                    global_index: p.global_index[v],
-                    parameters: c.variants[p.global_index[v]].clone(),
-                    state,
-                    message,
-                    t_fail,
-                    steps: stats.steps,
-                    rejected_steps: stats.rejected_steps,
-                    newton_iterations: stats.newton_iterations,
-                    wall_s: wall,
-                    times: stats.times,
-                    sensors: summaries,
-                    derived,
-                    energy_growth: stats.energy_growth,
-                    energy_loss: stats.energy_loss,
-                    time_error_estimate: stats.time_error_estimate,
-                    warnings,
-                    history: keep_history.then_some(hist),
-                    panicked: panicked.is_some(),
-                }
-            })
-            .collect()
-    });
+                    dynamics::run_member(m, ctx, run_slot, |_, _| {}).await
+                }),
+            });
+            member_variant.push(v);
+        }
+        let cpu: Arc<dyn ElementEval> = Arc::new(CpuEval);
+        let n = drive(eval.as_deref().unwrap_or(&*cpu), members, |k, result| {
+            let v = member_variant[k];
+            let wall = t0.elapsed().as_secs_f64();
+            outcomes[v - batch.start] = Some(finish(v, result, wall));
+        });
+        counts.lock().unwrap_or_else(|p| p.into_inner()).add(&n);
+        outcomes.into_iter().flatten().collect()
+    };
+    let size = batch_size(c.batch, nv, c.threads);
+    let batches: Vec<std::ops::Range<usize>> = (0..nv)
+        .step_by(size)
+        .map(|a| a..(a + size).min(nv))
+        .collect();
+    let outcomes: Vec<Outcome> =
+        pool.install(|| batches.into_par_iter().flat_map_iter(run_batch).collect());
+    let batch_counts = counts.into_inner().unwrap_or_else(|p| p.into_inner());
     let mut output_error = write_err.into_inner().unwrap_or_else(|p| p.into_inner());
     // the campaign's own state: a signal during the verification leaves it complete
     let stopped = stop.load(Ordering::SeqCst);
@@ -892,6 +941,7 @@ fn run_core(
         outcomes,
         output_error,
         verification,
+        batch: batch_counts,
     })
 }
 

@@ -309,7 +309,8 @@ fn completed_rows(path: &Path) -> usize {
 fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted_shard() {
     let dir = scratch("resume_sigterm");
     // 40 variants of ~0.1 s on one thread (test profile), a flush at most every 2 s:
-    // SIGTERM after the first flush lands mid-shard
+    // SIGTERM after the first flush lands mid-shard. `--batch 1`: variants end one by
+    // one (a batch's variants end together, so the first flush could come with the last)
     let base = &[
         "models/rotating_cantilever.toml",
         "--vary",
@@ -323,7 +324,16 @@ fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted
     let cut = dir.join("cut.h5");
     let child = spawn(sweep(
         base,
-        &["--shard", "1/2", "--threads", "1", "-o", s(&cut)],
+        &[
+            "--shard",
+            "1/2",
+            "--threads",
+            "1",
+            "--batch",
+            "1",
+            "-o",
+            s(&cut),
+        ],
     ));
     let deadline = Instant::now() + Duration::from_secs(60);
     while completed_rows(&cut) == 0 {

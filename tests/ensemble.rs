@@ -17,6 +17,7 @@ fn campaign(model: &str, variants: Vec<Vec<(String, f64)>>, threads: usize) -> C
         base: vec![],
         variants,
         threads,
+        batch: latdyn::ensemble::DEFAULT_BATCH,
         output: None,
         shard: None,
         accuracy: None,

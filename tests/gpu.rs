@@ -658,6 +658,8 @@ fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> Vec<latdyn::ensembl
             .map(|w| vec![("omega".to_string(), *w)])
             .collect(),
         threads,
+        // as `sweep --backend gpu`: one batcher client per variant
+        batch: 1,
         output: None,
         shard: None,
         accuracy: None,

@@ -7,11 +7,12 @@
 //! sparse LU every iteration on a pattern analysed once. A step whose Newton iteration
 //! fails or produces a non-finite value is halved and retried down to `dt_min`.
 
+use super::batch::{block_on, drive, Member, Slot};
 pub use super::linear::StageTimes;
 use super::linear::{norm_inf, Convergence, NewtonSystem};
 use super::statics::worst_dof;
 use crate::assembly::{Assembler, AssemblyInfo, Coeffs};
-use crate::element::ElementEval;
+use crate::element::{CpuEval, ElementEval};
 use crate::joint::{self, State};
 use crate::linalg::SparseLuSymbolic;
 use crate::model::Model;
@@ -467,10 +468,25 @@ impl<'m> Integrator<'m> {
         model: &'m Model,
         ctx: &RunContext,
     ) -> Result<Integrator<'m>, DynamicsError> {
+        block_on(Self::create(model, ctx, None))
+    }
+
+    /// [`Integrator::with_context`]; with `slot`, a member of a batch: its element stages
+    /// (from the initial acceleration on) are posted to `slot` for the batch driver.
+    async fn create(
+        model: &'m Model,
+        ctx: &RunContext<'_>,
+        slot: Option<Arc<Slot>>,
+    ) -> Result<Integrator<'m>, DynamicsError> {
         let s = State::new(model);
-        let asm = match &ctx.eval {
-            Some(eval) => Assembler::with_eval(model, eval.clone()),
-            None => Assembler::new(model),
+        let asm = match (&ctx.eval, slot) {
+            (eval, Some(slot)) => Assembler::batched(
+                model,
+                eval.clone().unwrap_or_else(|| Arc::new(CpuEval)),
+                slot,
+            ),
+            (Some(eval), None) => Assembler::with_eval(model, eval.clone()),
+            (None, None) => Assembler::new(model),
         };
         let sys = NewtonSystem::with_symbolic(model, &asm, &s, ctx.symbolic)?;
         let nd = model.dofs.len();
@@ -508,7 +524,7 @@ impl<'m> Integrator<'m> {
             load_power: 0.0,
             damping_power: 0.0,
         };
-        it.initial_acceleration();
+        it.initial_acceleration().await;
         let y0 = it.sample();
         for (k, y) in y0.iter().enumerate() {
             for (c, v) in y.iter().enumerate() {
@@ -524,7 +540,7 @@ impl<'m> Integrator<'m> {
     /// size h: `accuracy · h / t_end`, so that the accumulated error meets `accuracy`; 1
     /// without a target) and leaves per sensor, per component the values and |δy| in
     /// `ys` and `dys`.
-    fn step_error(&mut self, h: f64, ys: &mut Vec<Vec<f64>>, dys: &mut Vec<Vec<f64>>) -> f64 {
+    async fn step_error(&mut self, h: f64, ys: &mut Vec<Vec<f64>>, dys: &mut Vec<Vec<f64>>) -> f64 {
         let model = self.model;
         let p = self.p;
         let cq = p.beta - 1.0 / 6.0 + 0.5 * (p.alpha_m - p.alpha_f);
@@ -563,11 +579,11 @@ impl<'m> Integrator<'m> {
         self.te.r0.clone_from(&self.sys.r);
         self.te.gen0.clone_from(&self.sys.gen);
         let mut e = std::mem::take(&mut self.te.e);
-        self.stiff_filter(h, false, cq * h * h, &mut e);
+        self.stiff_filter(h, false, cq * h * h, &mut e).await;
         self.te.e = e;
         let mut ev = std::mem::take(&mut self.te.ev);
         if with_rates {
-            self.stiff_filter(h, true, cv * h * h * h, &mut ev);
+            self.stiff_filter(h, true, cv * h * h * h, &mut ev).await;
         } else {
             ev.iter_mut().for_each(|x| *x = 0.0);
         }
@@ -656,7 +672,7 @@ impl<'m> Integrator<'m> {
     /// residual is linear in the accelerations. The perturbation is scaled up to the size
     /// of the accelerations so the difference of residuals keeps its digits. Expects the
     /// converged residual in `te.r0`; leaves `sys.r` and `sys.gen` overwritten.
-    fn stiff_filter(&mut self, h: f64, rates: bool, factor: f64, out: &mut [f64]) {
+    async fn stiff_filter(&mut self, h: f64, rates: bool, factor: f64, out: &mut [f64]) {
         let model = self.model;
         let p = self.p;
         out.iter_mut().for_each(|x| *x = 0.0);
@@ -683,7 +699,8 @@ impl<'m> Integrator<'m> {
         let coeffs = Coeffs::dynamic(h * h * p.beta * cfac, h * p.gamma * cfac, 1.0);
         let ok = self
             .sys
-            .evaluate(model, &self.asm, &self.te.moved, coeffs, false)
+            .evaluate_async(model, &self.asm, &self.te.moved, coeffs, false)
+            .await
             .is_ok();
         if ok {
             // S⁻¹ (−(−M x)) : solve_neg_residual solves S Δ = −r
@@ -710,12 +727,13 @@ impl<'m> Integrator<'m> {
     }
 
     /// Consistent initial accelerations: M a₀ = −(forces at rest acceleration).
-    fn initial_acceleration(&mut self) {
+    async fn initial_acceleration(&mut self) {
         let c = Coeffs::dynamic(0.0, 0.0, 1.0);
         joint::update_kinematics(self.model, &mut self.s);
         if self
             .sys
-            .evaluate(self.model, &self.asm, &self.s, c, true)
+            .evaluate_async(self.model, &self.asm, &self.s, c, true)
+            .await
             .is_ok()
             && self.sys.solve_neg_residual(&mut self.dx).is_ok()
         {
@@ -734,12 +752,16 @@ impl<'m> Integrator<'m> {
             }
         });
         self.aux.copy_from_slice(&self.s.a);
-        self.refresh_energies();
+        self.refresh_energies().await;
     }
 
-    fn refresh_energies(&mut self) {
+    async fn refresh_energies(&mut self) {
         let c = Coeffs::dynamic(0.0, 0.0, 0.0);
-        if let Ok(info) = self.sys.evaluate(self.model, &self.asm, &self.s, c, false) {
+        if let Ok(info) = self
+            .sys
+            .evaluate_async(self.model, &self.asm, &self.s, c, false)
+            .await
+        {
             self.energies.kinetic = info.kinetic_energy;
             self.energies.strain = info.strain_energy;
             self.energies.gravity = info.gravity_energy;
@@ -788,7 +810,7 @@ impl<'m> Integrator<'m> {
     }
 
     /// Try one step of size h from the current state; on success the state advances.
-    fn try_step(&mut self, h: f64) -> Result<StepResult, DynamicsError> {
+    async fn try_step(&mut self, h: f64) -> Result<StepResult, DynamicsError> {
         let model = self.model;
         let p = self.p;
         self.start.clone_from(&self.s);
@@ -859,7 +881,11 @@ impl<'m> Integrator<'m> {
             // modified Newton: the Jacobian of the step's first iteration is reused
             // (residual-only element evaluations) while the residual contracts well
             let factor = it == 0 || !model.solver.modified_newton;
-            let info = match self.sys.evaluate(model, &self.asm, s, coeffs, factor) {
+            let info = match self
+                .sys
+                .evaluate_async(model, &self.asm, s, coeffs, factor)
+                .await
+            {
                 Ok(i) => i,
                 Err(_) => return Ok(StepResult::Failed),
             };
@@ -882,7 +908,8 @@ impl<'m> Integrator<'m> {
                 && res > NEWTON_CONTRACTION * prev_res
                 && self
                     .sys
-                    .evaluate(model, &self.asm, s, coeffs, true)
+                    .evaluate_async(model, &self.asm, s, coeffs, true)
+                    .await
                     .is_err()
             {
                 return Ok(StepResult::Failed);
@@ -901,12 +928,12 @@ impl<'m> Integrator<'m> {
         let Some((iters, info)) = converged else {
             return Ok(StepResult::Failed);
         };
-        self.commit(h, iters, info)
+        self.commit(h, iters, info).await
     }
 
     /// Accept a converged step (unless the accuracy target or a lock angle says retry):
     /// the auxiliary acceleration is updated in place from the step-start copy in aux0.
-    fn commit(
+    async fn commit(
         &mut self,
         h: f64,
         iters: usize,
@@ -927,7 +954,7 @@ impl<'m> Integrator<'m> {
             std::mem::take(&mut self.scratch_y),
             std::mem::take(&mut self.scratch_dy),
         );
-        let err = self.step_error(h, &mut ys, &mut dys);
+        let err = self.step_error(h, &mut ys, &mut dys).await;
         if model.solver.accuracy.is_some() {
             let retry = if err > 1.0 && h > model.solver.dt_min * (1.0 + 1e-9) {
                 Some(StepResult::TooInaccurate { err })
@@ -1043,6 +1070,16 @@ impl<'m> Integrator<'m> {
         t_target: f64,
         stop: Option<&std::sync::atomic::AtomicBool>,
     ) -> Result<(), DynamicsError> {
+        block_on(self.advance(t_target, stop))
+    }
+
+    /// [`Self::advance_until`] with the element stages as await points (a batch member's
+    /// posts them to its slot).
+    async fn advance(
+        &mut self,
+        t_target: f64,
+        stop: Option<&std::sync::atomic::AtomicBool>,
+    ) -> Result<(), DynamicsError> {
         let dt_nominal = self.model.solver.dt;
         let adaptive = self.model.solver.accuracy.is_some();
         while self.s.t < t_target - 1e-12 * t_target.abs().max(1.0) {
@@ -1066,7 +1103,7 @@ impl<'m> Integrator<'m> {
                 }
             }
             self.prev_q.clone_from(&self.s.q);
-            let step = self.try_step(h);
+            let step = self.try_step(h).await;
             // a drive or load that turned non-finite fails the step (NaN residual or
             // factorization); it is looked for only then, not evaluated again every step
             if matches!(step, Ok(StepResult::Failed) | Err(_)) {
@@ -1200,10 +1237,11 @@ impl<'m> Integrator<'m> {
 /// at the first step `dt` gives the ranges to expect; half of each is the floor (the
 /// probe's own error can make its ranges low, e.g. 17× at Ω̄ = 20 with dt = 0.01, which
 /// only makes the controller stricter than needed). A failed probe gives what it reached.
-fn range_floors(model: &Model, ctx: &RunContext) -> Vec<Vec<f64>> {
+async fn range_floors(model: &Model, ctx: &RunContext<'_>, slot: &Arc<Slot>) -> Vec<Vec<f64>> {
     let mut probe = model.clone();
     probe.solver.accuracy = None;
-    let (hist, _, _) = run_in(&probe, ctx, |_, _| {});
+    // boxed: the probe is a run, and a run awaits its probe
+    let (hist, _, _) = Box::pin(run_member(&probe, ctx, Arc::clone(slot), |_, _| {})).await;
     hist.values
         .iter()
         .zip(&model.sensors)
@@ -1283,25 +1321,54 @@ pub fn run_with(
     run_in(model, &ctx, on_sample)
 }
 
+/// What a run returns: the history so far, the counters, and the error that ended it.
+pub type RunResult = (History, RunStats, Option<DynamicsError>);
+
 /// Run the model from t = 0 to t_end in the context `ctx` (element stage, shared
 /// symbolic factorization, stop flag); `on_sample` sees every output sample as it comes.
 /// On failure the history so far is returned with the error.
+///
+/// A batch of one (see [`crate::solver::batch`]): the code path of every campaign variant.
 pub fn run_in(
     model: &Model,
     ctx: &RunContext,
+    on_sample: impl FnMut(f64, &[Vec<f64>]),
+) -> RunResult {
+    let eval = ctx.eval.clone().unwrap_or_else(|| Arc::new(CpuEval));
+    let slot = Slot::new();
+    let member = Member {
+        elems: &model.elem_data,
+        slot: Arc::clone(&slot),
+        run: Box::pin(run_member(model, ctx, slot, on_sample)),
+    };
+    let mut result = None;
+    drive(&*eval, vec![member], |_, r| result = Some(r));
+    match result {
+        Some(Ok(r)) => r,
+        // a panic in the run stays a panic of the caller, as before batching
+        Some(Err(panic)) => std::panic::resume_unwind(panic),
+        None => unreachable!("the batch driver reports every member"),
+    }
+}
+
+/// [`run_in`] as a member of a batch: every element stage is posted to `slot`.
+pub(crate) async fn run_member(
+    model: &Model,
+    ctx: &RunContext<'_>,
+    slot: Arc<Slot>,
     mut on_sample: impl FnMut(f64, &[Vec<f64>]),
-) -> (History, RunStats, Option<DynamicsError>) {
+) -> RunResult {
     let stop = ctx.stop;
     let mut hist = History {
         t: Vec::new(),
         values: vec![Vec::new(); model.sensors.len()],
     };
-    let mut integ = match Integrator::with_context(model, ctx) {
+    let mut integ = match Integrator::create(model, ctx, Some(Arc::clone(&slot))).await {
         Ok(i) => i,
         Err(e) => return (hist, RunStats::default(), Some(e)),
     };
     if model.solver.accuracy.is_some() {
-        integ.te.floor = range_floors(model, ctx);
+        integ.te.floor = range_floors(model, ctx, &slot).await;
     }
     let mut output_s = 0.0;
     // (balance at the previous sample, locked hinges then; growth and loss so far of the
@@ -1344,7 +1411,7 @@ pub fn run_in(
             break;
         }
         if i > 0 {
-            if let Err(e) = integ.advance_until(t, stop) {
+            if let Err(e) = integ.advance(t, stop).await {
                 failure = Some(e);
                 break;
             }

@@ -5,6 +5,7 @@ use crate::assembly::{Assembler, AssemblyInfo, Coeffs, PatternSink, Sink};
 use crate::joint::State;
 use crate::linalg::{LinalgError, SparseLu, SparseLuSymbolic, SparsePattern};
 use crate::model::Model;
+use crate::solver::batch::block_on;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -191,6 +192,7 @@ impl NewtonSystem {
     }
 
     /// Evaluate residual and Jacobian at `s`; factor the Jacobian when `factor` is set.
+    /// The element stage runs on the spot (see [`Assembler::evaluate`]).
     pub fn evaluate(
         &mut self,
         model: &Model,
@@ -199,8 +201,33 @@ impl NewtonSystem {
         c: Coeffs,
         factor: bool,
     ) -> Result<AssemblyInfo, LinalgError> {
+        block_on(self.evaluate_in(model, asm, s, c, factor, false))
+    }
+
+    /// [`NewtonSystem::evaluate`] with the element stage as an await point (see
+    /// [`Assembler::evaluate_async`]).
+    pub async fn evaluate_async(
+        &mut self,
+        model: &Model,
+        asm: &Assembler,
+        s: &State,
+        c: Coeffs,
+        factor: bool,
+    ) -> Result<AssemblyInfo, LinalgError> {
+        self.evaluate_in(model, asm, s, c, factor, true).await
+    }
+
+    async fn evaluate_in(
+        &mut self,
+        model: &Model,
+        asm: &Assembler,
+        s: &State,
+        c: Coeffs,
+        factor: bool,
+        batched: bool,
+    ) -> Result<AssemblyInfo, LinalgError> {
         let t0 = Instant::now();
-        let element_before = asm.stage_times().element_s;
+        let before = asm.stage_times();
         self.values.iter_mut().for_each(|v| *v = 0.0);
         let info = if factor {
             let mut sink = SparseSink {
@@ -209,16 +236,26 @@ impl NewtonSystem {
                 cache: &mut self.slot_cache,
                 next: 0,
             };
-            asm.evaluate(model, s, c, &mut self.gen, Some(&mut sink))
+            if batched {
+                asm.evaluate_async(model, s, c, &mut self.gen, Some(&mut sink))
+                    .await
+            } else {
+                asm.evaluate(model, s, c, &mut self.gen, Some(&mut sink))
+            }
+        } else if batched {
+            asm.evaluate_async(model, s, c, &mut self.gen, None).await
         } else {
             asm.evaluate(model, s, c, &mut self.gen, None)
         };
         crate::assembly::gather(model, s, &self.gen, &mut self.r);
         let t1 = Instant::now();
-        // the assembler times its element stage; the rest of this span is assembly
-        let element = asm.stage_times().element_s - element_before;
+        // the assembler times its element stage (a batch member: its share of the round)
+        // and its wait for the other members; the rest of this span is assembly
+        let after = asm.stage_times();
+        let element = after.element_s - before.element_s;
+        let waiting = after.waiting_s - before.waiting_s;
         self.times.element_s += element;
-        self.times.assembly_s += (t1 - t0).as_secs_f64() - element;
+        self.times.assembly_s += ((t1 - t0).as_secs_f64() - element - waiting).max(0.0);
         if factor {
             let r = self.lu.factor(&self.values);
             self.times.factorization_s += t1.elapsed().as_secs_f64();

@@ -1,6 +1,7 @@
 //! Solvers: statics (load stepping), modes (linearised eigenproblem), and the Newton
 //! system they share.
 
+pub mod batch;
 pub mod dynamics;
 pub mod linear;
 pub mod modes;

@@ -930,6 +930,7 @@ fn blade_campaign(
         base: vec![("t_end".into(), 0.1)],
         variants,
         threads,
+        batch: latdyn::ensemble::DEFAULT_BATCH,
         output: None,
         shard: None,
         accuracy: None,

@@ -171,6 +171,15 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         base: args.model.set.clone(),
         variants,
         threads,
+        batch: args.batch.map_or(
+            // the GPU's batcher gathers variants across threads, one client per batch
+            if stage.make.is_some() {
+                1
+            } else {
+                latdyn::ensemble::DEFAULT_BATCH
+            },
+            |b| b as usize,
+        ),
         output: args.output.clone().or(args.resume.clone()),
         shard: args.shard,
         accuracy: args.accuracy,
@@ -241,6 +250,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         outcomes,
         output_error,
         verification,
+        batch: batch_counts,
     } = {
         let progress = |done: usize, _: usize| {
             if let Some(b) = &bar {
@@ -309,13 +319,19 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         ),
         None => ("complete", String::new()),
     };
+    let batch = ensemble::batch_size(c.batch, prepared.models.len(), threads);
+    let per_call = batch_counts.requests as f64 / batch_counts.calls.max(1) as f64;
     eprintln!(
-        "sweep {}: {} variants ({} not completed) in {:.2} s on {} threads{}",
+        "sweep {}: {} variants ({} not completed) in {:.2} s on {} threads, in batches of {} \
+         ({} element-stage calls, {:.2} variants per call){}",
         c.model_path.display(),
         outcomes.len(),
         failed,
         wall,
         threads,
+        batch,
+        batch_counts.calls,
+        per_call,
         match (&c.output, &output_error) {
             (Some(p), None) => format!(", written to {}", p.display()),
             (Some(p), Some(_)) => format!(", writing {} failed", p.display()),
@@ -414,6 +430,9 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             "precision": stage.precision,
             "adapter": stage.adapter,
             "threads": threads,
+            "batch": batch,
+            "element_stage_calls": batch_counts.calls,
+            "requests_per_call": per_call,
         });
         if args.verify.is_some() {
             v["verification"] = match &verification {
