@@ -55,7 +55,8 @@ def study():
     doc = "docs/studies/minimast_hinge_sweep.md"
     vary = ["--vary", "longeron_axis_angle=-0.1:0.1:51"]
     t0 = time.perf_counter()
-    p = subprocess.run([B, "sweep", MODEL] + vary + ["--backend", "cpu", "--json"],
+    # --batch 1: the per-design `wall_s` averaged below is then each design's own run
+    p = subprocess.run([B, "sweep", MODEL] + vary + ["--backend", "cpu", "--batch", "1", "--json"],
                        capture_output=True, text=True)
     t_dyn = time.perf_counter() - t0
     dyn = json.loads(p.stdout)

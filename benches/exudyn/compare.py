@@ -336,7 +336,10 @@ def _lat_sweep(L, n_var, t_end, dt, ne):
         out = os.path.join(td, "campaign.h5")
         cmd = [L.exe, "sweep", FB_MODEL, "--vary", f"omega=1:9:{n_var}", "--set",
                f"t_end={t_end}", "--set", f"dt={dt}", "--set", f"elements={ne}",
-               "--threads", "2", "--json", "-o", out]
+               # --batch 1: each variant's `wall_s` is then its own integration (in a
+               # batch it spans the batch's shared thread time); same speed as --batch 8
+               # (docs/bench/batch.md)
+               "--threads", "2", "--batch", "1", "--json", "-o", out]
         t0 = time.perf_counter()
         p = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
