@@ -230,7 +230,7 @@ impl Assembler {
         gen: &mut [f64],
         sink: Option<&mut dyn Sink>,
     ) -> AssemblyInfo {
-        block_on(self.evaluate_in(None, model, s, c, gen, sink))
+        block_on(self.evaluate_in(false, model, s, c, gen, sink))
     }
 
     /// [`Assembler::evaluate`] with the element stage as an await point: a batch member's
@@ -243,13 +243,14 @@ impl Assembler {
         gen: &mut [f64],
         sink: Option<&mut dyn Sink>,
     ) -> AssemblyInfo {
-        self.evaluate_in(self.slot.as_deref(), model, s, c, gen, sink)
-            .await
+        self.evaluate_in(true, model, s, c, gen, sink).await
     }
 
-    async fn evaluate_in(
+    /// [`Assembler::evaluate_async`] when `batched` (a batch member posts its element
+    /// stage to its slot), else [`Assembler::evaluate`] (on the spot).
+    pub(crate) async fn evaluate_in(
         &self,
-        slot: Option<&Slot>,
+        batched: bool,
         model: &Model,
         s: &State,
         c: Coeffs,
@@ -259,6 +260,7 @@ impl Assembler {
         gen.iter_mut().for_each(|x| *x = 0.0);
         let mut info = AssemblyInfo::default();
         let t_start = Instant::now();
+        let slot = if batched { self.slot.as_deref() } else { None };
         let waited = self
             .elements(slot, model, s, c, gen, sink.as_deref_mut(), &mut info)
             .await;

@@ -236,16 +236,11 @@ impl NewtonSystem {
                 cache: &mut self.slot_cache,
                 next: 0,
             };
-            if batched {
-                asm.evaluate_async(model, s, c, &mut self.gen, Some(&mut sink))
-                    .await
-            } else {
-                asm.evaluate(model, s, c, &mut self.gen, Some(&mut sink))
-            }
-        } else if batched {
-            asm.evaluate_async(model, s, c, &mut self.gen, None).await
+            asm.evaluate_in(batched, model, s, c, &mut self.gen, Some(&mut sink))
+                .await
         } else {
-            asm.evaluate(model, s, c, &mut self.gen, None)
+            asm.evaluate_in(batched, model, s, c, &mut self.gen, None)
+                .await
         };
         crate::assembly::gather(model, s, &self.gen, &mut self.r);
         let t1 = Instant::now();
