@@ -119,7 +119,7 @@ impl Coeffs {
 /// live in [`Model`]; nothing here outlives the run or is shared between variants.
 pub struct Assembler {
     /// the element stage: the CPU functions ([`Assembler::new`]) or another backend
-    /// ([`Assembler::with_eval`], e.g. a GPU batcher's client)
+    /// ([`Assembler::with_eval`], e.g. the GPU stage)
     pub eval: Arc<dyn ElementEval>,
     /// uncontended: `evaluate` takes `&self`, and one assembler serves one solver thread
     scratch: Mutex<Scratch>,

@@ -574,7 +574,7 @@ pub fn run(
 }
 
 /// [`run`] with the element stage of every variant from `stage` (each variant's solver is
-/// unchanged; only its element evaluations go elsewhere, e.g. to a shared GPU batcher).
+/// unchanged; only its element evaluations go elsewhere, e.g. to a shared GPU stage).
 pub fn run_on(
     c: &Campaign,
     p: &Prepared,

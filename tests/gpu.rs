@@ -17,7 +17,9 @@ mod common;
 use std::io::Write;
 use std::sync::{Arc, Mutex};
 
-use latdyn::element::{CpuEval, ElemData, ElemIn, ElemOut, ElemState, ElementEval, EvalError};
+use latdyn::element::{
+    CpuEval, ElemData, ElemIn, ElemOut, ElemState, ElementEval, EvalError, EvalRequest,
+};
 use latdyn::gpu::{self, GpuContext, Precision};
 use latdyn::math::*;
 use latdyn::model::BeamProps;
@@ -525,11 +527,17 @@ fn model_data_is_uploaded_once_not_per_dispatch() {
         );
         assert_eq!(after.elements - first.elements, 0);
         // per dispatch: parameters (16 B) and the 36-word inputs, plus the 12-word
-        // accelerations for the residual kernel; the slot indices only when they changed
+        // accelerations for the residual kernel; the slot indices only when they changed,
+        // in the full kernels' index or the residual kernel's own (written by the first
+        // residual dispatch, 4 B per element)
         let inp = (16 + n * 36 * word) as u64;
         let acc = (n * 12 * word) as u64;
         for (it, b) in bytes.iter().enumerate().skip(1) {
-            let want = if it % 2 == 0 { inp } else { inp + acc };
+            let want = match it {
+                1 => inp + acc + 4 * n as u64,
+                _ if it % 2 == 0 => inp,
+                _ => inp + acc,
+            };
             assert_eq!(*b, want, "{test}: bytes uploaded by dispatch {it}");
         }
         let _ = writeln!(
@@ -547,6 +555,134 @@ fn model_data_is_uploaded_once_not_per_dispatch() {
         ctx.evaluate(&changed, &inputs, false, &mut out).unwrap();
         ctx.evaluate(&changed, &inputs, false, &mut out).unwrap();
         assert_eq!(ctx.model_uploads().uploads - after.uploads, 1);
+    }
+}
+
+/// Bit patterns of every output field, for bitwise comparison (NaN equal to NaN, −0
+/// different from +0).
+fn out_bits(o: &[ElemOut]) -> Vec<u64> {
+    let mut w = Vec::new();
+    for e in o {
+        w.extend(e.f.iter().map(|x| x.to_bits()));
+        w.extend(e.k.iter().flatten().map(|x| x.to_bits()));
+        w.push(e.energy.to_bits());
+        w.extend(e.m.iter().flatten().map(|x| x.to_bits()));
+        w.extend(e.s.iter().map(|x| x.to_bits()));
+        w.extend(e.c.iter().flatten().map(|x| x.to_bits()));
+        w.extend(e.finert.iter().map(|x| x.to_bits()));
+        w.extend(e.mv.iter().map(|x| x.to_bits()));
+    }
+    w
+}
+
+/// One round of requests of every kind (full with and without inertia, residual-only
+/// with and without, an empty one, two sharing element data) is one submission with one
+/// dispatch per kernel, and every request's outputs are bit-identical to evaluating it
+/// alone, in both upload forms (`corotate`).
+#[test]
+fn a_mixed_round_is_one_submission_and_each_request_is_bit_identical_to_alone() {
+    let test = "a_mixed_round_is_one_submission_and_each_request_is_bit_identical_to_alone";
+    let mut rng = Rng(0x5eed_0017);
+    // (residual, inertia, elements)
+    let kinds = [
+        (false, true, 7),
+        (true, true, 5),
+        (false, false, 3),
+        (true, false, 6),
+        (false, true, 0),
+        (true, true, 4),
+        (false, true, 7),
+    ];
+    let data: Vec<(Vec<ElemData>, Vec<ElemIn>)> = kinds
+        .iter()
+        .map(|&(_, _, n)| (0..n).map(|_| random_element(&mut rng, 1e-4)).unzip())
+        .collect();
+    // the last request evaluates the first one's elements in another state
+    let mut data = data;
+    data[6].0 = data[0].0.clone();
+    for ctx in shared_contexts(test) {
+        let mut ctx = lock(ctx);
+        for corotate in [false, true] {
+            ctx.corotate = corotate;
+            let label = format!(
+                "{test}: {} {} corotate={corotate}",
+                ctx.adapter.label(),
+                ctx.precision.as_str()
+            );
+            let alone: Vec<Vec<ElemOut>> = kinds
+                .iter()
+                .zip(&data)
+                .map(|(&(residual, inertia, n), (e, i))| {
+                    let mut out = vec![ElemOut::default(); n];
+                    let r = if residual {
+                        ctx.evaluate_residual(e, i, inertia, &mut out)
+                    } else {
+                        ctx.evaluate(e, i, inertia, &mut out)
+                    };
+                    r.unwrap_or_else(|e| panic!("{label}: {e}"));
+                    out
+                })
+                .collect();
+            let mut outs: Vec<Vec<ElemOut>> = kinds
+                .iter()
+                .map(|&(_, _, n)| vec![ElemOut::default(); n])
+                .collect();
+            let mut reqs: Vec<EvalRequest<'_>> = kinds
+                .iter()
+                .zip(&data)
+                .zip(outs.iter_mut())
+                .map(|((&(residual, inertia, _), (e, i)), out)| EvalRequest {
+                    elems: e,
+                    inputs: i,
+                    out,
+                    residual,
+                    inertia,
+                })
+                .collect();
+            let t = ctx
+                .evaluate_batch(&mut reqs)
+                .unwrap_or_else(|e| panic!("{label}: {e}"));
+            assert_eq!(t.batches, 1, "{label}: submissions");
+            // beam_force and beam_inertia over the full requests, beam_residual over
+            // the residual-only ones
+            assert_eq!(t.dispatches, 3, "{label}: dispatches");
+            assert_eq!(t.residual_dispatches, 1, "{label}");
+            assert_eq!(t.requests, 6, "{label}: requests with elements");
+            assert_eq!(t.elements, 32, "{label}");
+            for (k, (a, b)) in alone.iter().zip(&outs).enumerate() {
+                assert!(
+                    out_bits(a) == out_bits(b),
+                    "{label}: request {k} {:?} differs from its lone evaluation",
+                    kinds[k]
+                );
+            }
+            // a round of full requests only: no residual dispatch; of residual only: one
+            let mut outs2: Vec<Vec<ElemOut>> = vec![vec![ElemOut::default(); 7]; 2];
+            let [o0, o1] = &mut outs2[..] else {
+                unreachable!()
+            };
+            let mut reqs = [
+                EvalRequest {
+                    elems: &data[0].0,
+                    inputs: &data[0].1,
+                    out: o0,
+                    residual: false,
+                    inertia: true,
+                },
+                EvalRequest {
+                    elems: &data[6].0,
+                    inputs: &data[6].1,
+                    out: o1,
+                    residual: false,
+                    inertia: true,
+                },
+            ];
+            let t = ctx.evaluate_batch(&mut reqs).unwrap();
+            assert_eq!((t.batches, t.dispatches, t.residual_dispatches), (1, 2, 0));
+            assert!(out_bits(&outs2[0]) == out_bits(&alone[0]), "{label}");
+            assert!(out_bits(&outs2[1]) == out_bits(&alone[6]), "{label}");
+        }
+        ctx.corotate = ctx.precision == Precision::F32;
     }
 }
 
@@ -645,9 +781,20 @@ fn kernels_match_cpu_on_the_states_of_real_simulations() {
     }
 }
 
+/// A GPU stage as `sweep --backend gpu` makes it: one evaluator shared by every worker.
+fn gpu_stage(eval: &Arc<gpu::GpuEval>, label: &str) -> latdyn::ensemble::Stage {
+    let e = eval.clone();
+    latdyn::ensemble::Stage {
+        backend: "gpu".into(),
+        precision: label.rsplit(' ').next().unwrap_or_default().into(),
+        adapter: label.into(),
+        make: Some(Arc::new(move || e.clone() as Arc<dyn ElementEval>)),
+    }
+}
+
 /// The rotating-beam campaign of the README (Ω̄ = 0, 5, 10, flapwise tip impulse, 12 s)
-/// with every variant's element stage on one shared GPU batcher, against the CPU path.
-fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> Vec<latdyn::ensemble::Outcome> {
+/// in one batch (as `sweep --backend gpu` on one worker), against the CPU path.
+fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> latdyn::ensemble::CampaignRun {
     use latdyn::ensemble::{self, Campaign};
     let c = Campaign {
         model_path: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -658,8 +805,7 @@ fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> Vec<latdyn::ensembl
             .map(|w| vec![("omega".to_string(), *w)])
             .collect(),
         threads,
-        // as `sweep --backend gpu`: one batcher client per variant
-        batch: 1,
+        batch: 3,
         output: None,
         shard: None,
         accuracy: None,
@@ -668,7 +814,7 @@ fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> Vec<latdyn::ensembl
     };
     let p = ensemble::prepare(&c).unwrap();
     let stop = std::sync::atomic::AtomicBool::new(false);
-    ensemble::run_on(&c, &p, &stop, false, &|_, _| {}, stage).unwrap()
+    ensemble::run_to(&c, &p, &stop, false, &|_, _| {}, stage, None).unwrap()
 }
 
 #[test]
@@ -679,7 +825,7 @@ fn rotating_beam_sweep_on_the_gpu_gives_the_cpu_frequencies_and_sensors() {
         return;
     }
     let t_cpu = std::time::Instant::now();
-    let cpu = sweep(&latdyn::ensemble::Stage::cpu(), 2);
+    let cpu = sweep(&latdyn::ensemble::Stage::cpu(), 2).outcomes;
     let _ = writeln!(
         std::io::stderr(),
         "{test}: cpu: {:.1} s",
@@ -702,37 +848,37 @@ fn rotating_beam_sweep_on_the_gpu_gives_the_cpu_frequencies_and_sensors() {
             "{test}: {label}: context (kernel compilation) {:.1} s",
             t_open.elapsed().as_secs_f64()
         );
-        let batcher = gpu::batch::Batcher::start(ctx, std::time::Duration::from_millis(2));
-        let b2 = batcher.clone();
-        let stage = latdyn::ensemble::Stage {
-            backend: "gpu".into(),
-            precision: p.as_str().into(),
-            adapter: label.clone(),
-            make: Some(Arc::new(move || b2.client() as Arc<dyn ElementEval>)),
-        };
+        let eval = Arc::new(gpu::GpuEval::new(ctx));
+        let stage = gpu_stage(&eval, &label);
         let t0 = std::time::Instant::now();
-        let out = sweep(&stage, 3);
-        let st = batcher.stats();
+        let run = sweep(&stage, 1);
+        let out = run.outcomes;
+        let (st, model) = (eval.times(), eval.model_uploads());
         let _ = writeln!(
             std::io::stderr(),
-            "{test}: {label}: {:.1} s, {} rounds, {:.2} requests per round ({} residual-only); model data {} upload(s) of {} B; GPU upload {:.1} s, kernels {:.1} s, download {:.1} s",
+            "{test}: {label}: {:.1} s, {} rounds, {:.2} dispatches and {:.2} requests per round ({} residual-only dispatches); model data {} upload(s) of {} B; GPU upload {:.1} s, kernels {:.1} s, download {:.1} s",
             t0.elapsed().as_secs_f64(),
-            st.rounds,
-            st.requests as f64 / st.rounds.max(1) as f64,
-            st.residual_requests,
-            st.model.uploads,
-            st.model.bytes,
-            st.gpu.upload_s,
-            st.gpu.kernel_s,
-            st.gpu.download_s
+            st.batches,
+            st.dispatches as f64 / st.batches.max(1) as f64,
+            st.requests as f64 / st.batches.max(1) as f64,
+            st.residual_dispatches,
+            model.uploads,
+            model.bytes,
+            st.upload_s,
+            st.kernel_s,
+            st.download_s
         );
-        // each variant's client sent its element data once (one client per variant)
-        assert_eq!(
-            st.model.uploads as usize,
-            cpu.len(),
-            "{label}: model data uploads {:?}",
-            st.model
-        );
+        // one submission per round of the batch driver, at most one dispatch per kernel;
+        // besides, each variant evaluates once on the spot (the sparse pattern's probe)
+        let nv = out.len() as u64;
+        assert_eq!(st.batches, run.batch.calls + nv, "{label}: rounds");
+        assert_eq!(st.requests, run.batch.requests + nv, "{label}: requests");
+        assert!(st.dispatches <= 3 * st.batches, "{label}: {st:?}");
+        // modified Newton: residual-only rounds use the residual kernel
+        assert!(st.residual_dispatches > 0, "{label}: {st:?}");
+        // the variants share their element data (Ω varies, the beam does not): one
+        // upload for the campaign
+        assert_eq!(model.uploads, 1, "{label}: model data uploads {model:?}");
         for (c, g) in cpu.iter().zip(&out) {
             assert_eq!(
                 g.state,
@@ -800,6 +946,109 @@ fn rotating_beam_sweep_on_the_gpu_gives_the_cpu_frequencies_and_sensors() {
                     assert!(es < 1e-3, "{label}: sensors differ by {es:.2e}");
                 }
             }
+        }
+    }
+}
+
+/// A batch of variants on the GPU stage (one round, one submission per Newton iteration
+/// of all of them) gives every variant bit-identical histories to that variant run alone
+/// on the same GPU stage: the variants differ in speed (the same element data) and in
+/// stiffness (their own), so rounds mix full and residual-only requests of different
+/// segments, and variants need different iteration counts.
+#[test]
+fn a_gpu_batch_gives_each_variant_its_lone_gpu_history_bit_for_bit() {
+    use latdyn::ensemble::{self, Campaign};
+    let test = "a_gpu_batch_gives_each_variant_its_lone_gpu_history_bit_for_bit";
+    if adapters_or_skip(test).is_empty() {
+        return;
+    }
+    let variants: Vec<Vec<(String, f64)>> = [(0.0, 1.0), (5.0, 1.0), (10.0, 2.0), (5.0, 0.5)]
+        .iter()
+        .map(|&(w, ei)| vec![("omega".to_string(), w), ("EI".to_string(), ei)])
+        .collect();
+    let campaign = |batch: usize| Campaign {
+        model_path: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("models/rotating_cantilever.toml"),
+        base: vec![("t_end".to_string(), 1.5)],
+        variants: variants.clone(),
+        threads: 1,
+        batch,
+        output: None,
+        shard: None,
+        accuracy: None,
+        frequency_sensor: None,
+        command_line: "test".into(),
+    };
+    for p in [Precision::F32, Precision::F64] {
+        let ctx = match GpuContext::open(p, true) {
+            Ok(c) => c,
+            Err(gpu::GpuError::NoF64(_)) => {
+                skip(test, "no adapter with f64 shaders, f64 part not run");
+                continue;
+            }
+            Err(e) => panic!("{test}: {e}"),
+        };
+        let label = format!("{} {}", ctx.adapter.label(), p.as_str());
+        let eval = Arc::new(gpu::GpuEval::new(ctx));
+        let stage = gpu_stage(&eval, &label);
+        let stop = std::sync::atomic::AtomicBool::new(false);
+        let run = |batch: usize| {
+            let c = campaign(batch);
+            let prep = ensemble::prepare(&c).unwrap();
+            let before = (eval.times(), eval.model_uploads());
+            let r = ensemble::run_to(&c, &prep, &stop, true, &|_, _| {}, &stage, None).unwrap();
+            let (t, m) = (eval.times(), eval.model_uploads());
+            (
+                r,
+                t.batches - before.0.batches,
+                m.uploads - before.1.uploads,
+            )
+        };
+        let (batched, rounds, uploads) = run(4);
+        // omega does not change the element data, EI does: three different tables
+        assert_eq!(uploads, 3, "{label}: model data uploads of the batch");
+        // one submission per round, plus each variant's sparse-pattern probe
+        assert_eq!(
+            rounds,
+            batched.batch.calls + 4,
+            "{label}: one submission per round"
+        );
+        assert!(
+            batched.batch.requests > 2 * batched.batch.calls,
+            "{label}: rounds carry the batch ({:?})",
+            batched.batch
+        );
+        let (alone, ..) = run(1);
+        assert_eq!(alone.batch.requests, alone.batch.calls, "{label}");
+        let _ = writeln!(
+            std::io::stderr(),
+            "{test}: {label}: batch of 4: {} rounds for {} requests; alone: {} rounds",
+            batched.batch.calls,
+            batched.batch.requests,
+            alone.batch.calls
+        );
+        for (b, a) in batched.outcomes.iter().zip(&alone.outcomes) {
+            let what = format!("{label}: variant {}", b.global_index);
+            assert_eq!(b.global_index, a.global_index);
+            assert_eq!(
+                b.state,
+                latdyn::output::VariantState::Completed,
+                "{what}: {}",
+                b.message
+            );
+            let (hb, ha) = (b.history.as_ref().unwrap(), a.history.as_ref().unwrap());
+            let bits = |v: &Vec<Vec<Vec<f64>>>| -> Vec<u64> {
+                v.iter().flatten().flatten().map(|x| x.to_bits()).collect()
+            };
+            assert!(!ha.t.is_empty(), "{what}: no samples");
+            assert_eq!(hb.t, ha.t, "{what}: times");
+            assert!(
+                bits(&hb.values) == bits(&ha.values),
+                "{what}: sensor histories"
+            );
+            assert_eq!(b.steps, a.steps, "{what}");
+            assert_eq!(b.newton_iterations, a.newton_iterations, "{what}");
+            assert_eq!(b.rejected_steps, a.rejected_steps, "{what}");
         }
     }
 }

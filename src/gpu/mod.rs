@@ -4,21 +4,24 @@
 //!
 //! - [`adapters`] lists what the machine offers (Vulkan and OpenGL ES backends) with
 //!   device type and SHADER_F64 support; [`select`] picks one for `--backend`.
-//! - [`GpuContext`] owns device, pipelines and grow-only buffers, and evaluates one batch:
-//!   one upload, one dispatch per kernel, one download. Every output word is overwritten
-//!   each dispatch and nothing is accumulated on the GPU, so results are reproducible.
-//! - [`GpuEval`] is an [`ElementEval`] over a context (one solver at a time);
-//!   [`batch::Batcher`] shares one context among many solver threads, one round trip per
-//!   Newton iteration of many variants.
+//! - [`GpuContext`] owns device, pipelines, the resident model data and grow-only
+//!   buffers, and evaluates one round: every request of a batch (each variant's elements,
+//!   full or residual-only) in one upload, one submission with one dispatch per kernel,
+//!   one readback. Every output word is overwritten each dispatch and nothing is
+//!   accumulated on the GPU, so results are reproducible.
+//! - [`GpuEval`] is an [`ElementEval`] over a context: one shared by every worker of a
+//!   campaign, whose batch driver (`crate::solver::batch`) hands it one round per Newton
+//!   iteration of its batch's variants.
 
-pub mod batch;
 pub mod layout;
 pub mod policy;
 
 use std::sync::Mutex;
 use std::time::Instant;
 
-use crate::element::{ElemData, ElemIn, ElemOut, ElemState, ElementEval, EvalError, NDOF};
+use crate::element::{
+    ElemData, ElemIn, ElemOut, ElemState, ElementEval, EvalError, EvalRequest, NDOF,
+};
 use crate::math::{add, mat_mul, mat_vec, sub, transpose, Mat3, I3};
 use layout::{Params, Records};
 
@@ -289,7 +292,16 @@ pub struct GpuTimes {
     pub download_s: f64,
     /// of `upload_s`: comparing the caller's element data with the resident copy
     pub check_s: f64,
+    /// rounds: one upload, one queue submission and one readback each
     pub batches: u64,
+    /// kernel dispatches in those rounds: beam_force and beam_inertia for the full
+    /// requests of a round (beam_inertia only with inertia), beam_residual for its
+    /// residual-only requests
+    pub dispatches: u64,
+    /// of `dispatches`: beam_residual ones (modified-Newton iterations)
+    pub residual_dispatches: u64,
+    /// requests (one variant's elements each) over all rounds
+    pub requests: u64,
     pub elements: u64,
     /// bytes written to the device per dispatch (inputs, accelerations, changed slot
     /// indices, parameters), summed; model data is counted in [`ModelUploads`]
@@ -305,6 +317,9 @@ impl GpuTimes {
         self.download_s += o.download_s;
         self.check_s += o.check_s;
         self.batches += o.batches;
+        self.dispatches += o.dispatches;
+        self.residual_dispatches += o.residual_dispatches;
+        self.requests += o.requests;
         self.elements += o.elements;
         self.bytes_up += o.bytes_up;
         self.bytes_down += o.bytes_down;
@@ -352,10 +367,24 @@ struct Table {
     counts: ModelUploads,
 }
 
-/// Segments [`GpuContext::evaluate`] keeps for callers that pass their element data each
-/// time: the most recently used first. Four covers a caller alternating between a few
-/// batches (tests, benches) without letting a stream of different batches grow the table.
-const CACHED_SEGMENTS: usize = 4;
+/// Calls of [`GpuContext::evaluate_batch`] a resident segment survives unused. Several
+/// worker threads share one context, each with its own batch of variants, so a batch's
+/// segments must outlive the other workers' calls in between (a worker's next round
+/// comes after its CPU work, while the others take their turns); a finished variant's
+/// segment is released this many calls later and its slots go to the next registration,
+/// so a stream of different batches does not grow the table.
+const STALE_CALLS: u64 = 16;
+
+/// A resident segment of [`GpuContext::evaluate_batch`]'s content-checked cache.
+#[derive(Clone, Copy, Debug)]
+struct Cached {
+    seg: Segment,
+    /// address of the caller's element data when last matched: checked first (a batch's
+    /// variants keep their model's data in place), the content decides
+    addr: usize,
+    /// the call that last used it
+    used: u64,
+}
 
 /// Bitwise equality of element data (a NaN equals itself; -0 differs from +0): the cache
 /// may reuse the device copy only if the conversion would write the same bytes.
@@ -403,8 +432,12 @@ fn corotated_data(e: &ElemData) -> ElemData {
 
 struct Buffers {
     capacity: usize,
+    /// full requests' inputs and slots
     inputs: wgpu::Buffer,
     index: wgpu::Buffer,
+    /// residual-only requests' inputs, slots and accelerations
+    inputs_res: wgpu::Buffer,
+    index_res: wgpu::Buffer,
     accs: wgpu::Buffer,
     force: wgpu::Buffer,
     inertia: wgpu::Buffer,
@@ -431,18 +464,25 @@ pub struct GpuContext {
     force_pipe: wgpu::ComputePipeline,
     inertia_pipe: wgpu::ComputePipeline,
     residual_pipe: wgpu::ComputePipeline,
+    /// uniforms of the full kernels and of the residual kernel (both may run in a round)
     params: wgpu::Buffer,
+    params_res: wgpu::Buffer,
     bufs: Option<Buffers>,
     groups: Option<Groups>,
     table: Table,
-    /// LRU segments of [`GpuContext::evaluate`]'s content-checked cache
-    cache: Vec<Segment>,
-    /// slot indices of the last dispatch as on the device (rewritten only when changed)
+    /// resident segments of [`GpuContext::evaluate_batch`]'s content-checked cache
+    cache: Vec<Cached>,
+    /// calls of [`GpuContext::evaluate_batch`] so far
+    calls: u64,
+    /// slot indices of the last round as on the device (rewritten only when changed)
     last_index: Vec<u32>,
-    /// slot scratch of [`GpuContext::evaluate`]
+    last_index_res: Vec<u32>,
+    /// slot scratch of a round
     index: Vec<u32>,
-    /// host-side record scratch, reused across batches
+    index_res: Vec<u32>,
+    /// host-side record scratch, reused across rounds
     up_in: Vec<u8>,
+    up_res: Vec<u8>,
     up_acc: Vec<u8>,
     /// per-element Q of [`corotate`] in the current batch
     rot: Vec<Mat3>,
@@ -455,15 +495,6 @@ pub struct GpuContext {
 }
 
 const WORKGROUP: u32 = 64;
-
-/// What one dispatch computes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kind {
-    /// f, K, energy (beam_force) and M, S, C (beam_inertia) when inertia is asked
-    Full,
-    /// f, energy and the inertial forces only (beam_residual)
-    Residual,
-}
 
 impl GpuContext {
     /// Open `adapter` and compile the kernels in `precision`.
@@ -518,12 +549,16 @@ impl GpuContext {
         let force_pipe = make("beam_force")?;
         let inertia_pipe = make("beam_inertia")?;
         let residual_pipe = make("beam_residual")?;
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("params"),
-            size: std::mem::size_of::<Params>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let uniform = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: std::mem::size_of::<Params>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let params = uniform("params");
+        let params_res = uniform("params_res");
         let corotate = precision == Precision::F32;
         Ok(GpuContext {
             adapter: summary,
@@ -534,6 +569,7 @@ impl GpuContext {
             inertia_pipe,
             residual_pipe,
             params,
+            params_res,
             bufs: None,
             groups: None,
             table: Table {
@@ -546,9 +582,13 @@ impl GpuContext {
                 counts: ModelUploads::default(),
             },
             cache: Vec::new(),
+            calls: 0,
             last_index: Vec::new(),
+            last_index_res: Vec::new(),
             index: Vec::new(),
+            index_res: Vec::new(),
             up_in: Vec::new(),
+            up_res: Vec::new(),
             up_acc: Vec::new(),
             rot: Vec::new(),
             max_groups: limits.max_compute_workgroups_per_dimension,
@@ -581,9 +621,9 @@ impl GpuContext {
     }
 
     /// Put `elems` on the device once: the returned segment stays resident until
-    /// [`release`](Self::release)d, and [`evaluate_slots`](Self::evaluate_slots) refers
-    /// to its elements by slot ([`slots`](Self::slots)).
-    pub fn register(&mut self, elems: &[ElemData]) -> Result<Segment, GpuError> {
+    /// [`release`](Self::release)d, and a round refers to its elements by slot
+    /// ([`slots`](Self::slots)).
+    fn register(&mut self, elems: &[ElemData]) -> Result<Segment, GpuError> {
         let n = elems.len();
         let t = &mut self.table;
         // first fit among released segments (the clients of one campaign share a model,
@@ -620,15 +660,15 @@ impl GpuContext {
 
     /// Give a segment's slots back (its device data is left and overwritten by a later
     /// registration).
-    pub fn release(&mut self, s: Segment) {
+    fn release(&mut self, s: Segment) {
         if let Some(seg) = self.table.segs.get_mut(s.0) {
             seg.live = false;
         }
-        self.cache.retain(|c| *c != s);
+        self.cache.retain(|c| c.seg != s);
     }
 
     /// The table slots of a segment's elements, in order.
-    pub fn slots(&self, s: Segment) -> std::ops::Range<u32> {
+    fn slots(&self, s: Segment) -> std::ops::Range<u32> {
         let seg = self.table.segs[s.0];
         seg.offset as u32..(seg.offset + seg.n) as u32
     }
@@ -700,26 +740,50 @@ impl GpuContext {
     /// The resident segment holding exactly `elems` (content-checked), registering it
     /// when none does.
     fn resident(&mut self, elems: &[ElemData]) -> Result<Segment, GpuError> {
-        let found = self.cache.iter().position(|s| {
-            let seg = self.table.segs[s.0];
+        let addr = elems.as_ptr() as usize;
+        let holds = |t: &Table, s: Segment| {
+            let seg = t.segs[s.0];
             seg.live
                 && seg.n == elems.len()
-                && same_data(&self.table.mirror[seg.offset..seg.offset + seg.n], elems)
-        });
-        let s = match found {
-            Some(k) => self.cache.remove(k),
-            None => {
-                let s = self.register(elems)?;
-                if self.cache.len() >= CACHED_SEGMENTS {
-                    if let Some(old) = self.cache.pop() {
-                        self.release(old);
-                    }
-                }
-                s
-            }
+                && same_data(&t.mirror[seg.offset..seg.offset + seg.n], elems)
         };
-        self.cache.insert(0, s);
-        Ok(s)
+        let found = self
+            .cache
+            .iter()
+            .position(|c| c.addr == addr && holds(&self.table, c.seg))
+            .or_else(|| self.cache.iter().position(|c| holds(&self.table, c.seg)));
+        let call = self.calls;
+        match found {
+            Some(k) => {
+                let c = &mut self.cache[k];
+                c.addr = addr;
+                c.used = call;
+                Ok(c.seg)
+            }
+            None => {
+                let seg = self.register(elems)?;
+                self.cache.push(Cached {
+                    seg,
+                    addr,
+                    used: call,
+                });
+                Ok(seg)
+            }
+        }
+    }
+
+    /// Release the segments no call used for [`STALE_CALLS`] calls.
+    fn evict_stale(&mut self) {
+        let call = self.calls;
+        let stale: Vec<Segment> = self
+            .cache
+            .iter()
+            .filter(|c| call - c.used > STALE_CALLS)
+            .map(|c| c.seg)
+            .collect();
+        for s in stale {
+            self.release(s);
+        }
     }
 
     fn ensure(&mut self, n: usize, sizes: [usize; 5]) {
@@ -742,6 +806,8 @@ impl GpuContext {
             capacity: cap,
             inputs: storage("inputs", s_in, U::STORAGE | U::COPY_DST),
             index: storage("index", 4, U::STORAGE | U::COPY_DST),
+            inputs_res: storage("inputs_res", s_in, U::STORAGE | U::COPY_DST),
+            index_res: storage("index_res", 4, U::STORAGE | U::COPY_DST),
             accs: storage("accs", s_acc, U::STORAGE | U::COPY_DST),
             force: storage("force_out", s_force, U::STORAGE | U::COPY_SRC),
             inertia: storage("inertia_out", s_inertia, U::STORAGE | U::COPY_SRC),
@@ -750,8 +816,9 @@ impl GpuContext {
             staging_inertia: storage("staging_inertia", s_inertia, U::MAP_READ | U::COPY_DST),
             staging_residual: storage("staging_residual", s_res, U::MAP_READ | U::COPY_DST),
         });
-        // the new index buffer holds nothing yet
+        // the new index buffers hold nothing yet
         self.last_index.clear();
+        self.last_index_res.clear();
         self.groups = None;
     }
 
@@ -774,15 +841,22 @@ impl GpuContext {
                 resource: buf.as_entire_binding(),
             }
         }
-        let group = |pipe: &wgpu::ComputePipeline, out: &wgpu::Buffer, acc: bool| {
+        // the residual kernel has its own uniform, inputs and slots: it may run in the
+        // same submission as the full kernels, over other elements
+        let group = |pipe: &wgpu::ComputePipeline, out: &wgpu::Buffer, residual: bool| {
+            let (params, inputs, index) = if residual {
+                (&self.params_res, &b.inputs_res, &b.index_res)
+            } else {
+                (&self.params, &b.inputs, &b.index)
+            };
             let mut entries = vec![
-                entry(0, &self.params),
+                entry(0, params),
                 entry(1, table),
-                entry(2, &b.inputs),
+                entry(2, inputs),
                 entry(3, out),
-                entry(4, &b.index),
+                entry(4, index),
             ];
-            if acc {
+            if residual {
                 entries.push(entry(5, &b.accs));
             }
             self.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -809,7 +883,13 @@ impl GpuContext {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<GpuTimes, GpuError> {
-        self.evaluate_kind(Kind::Full, elems, inputs, inertia, out)
+        self.evaluate_batch(&mut [EvalRequest {
+            elems,
+            inputs,
+            out,
+            residual: false,
+            inertia,
+        }])
     }
 
     /// As [`evaluate`](Self::evaluate) for a residual-only iteration: f, energy and
@@ -821,90 +901,91 @@ impl GpuContext {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<GpuTimes, GpuError> {
-        self.evaluate_kind(Kind::Residual, elems, inputs, inertia, out)
+        self.evaluate_batch(&mut [EvalRequest {
+            elems,
+            inputs,
+            out,
+            residual: true,
+            inertia,
+        }])
     }
 
-    fn evaluate_kind(
-        &mut self,
-        kind: Kind,
-        elems: &[ElemData],
-        inputs: &[ElemIn],
-        inertia: bool,
-        out: &mut [ElemOut],
-    ) -> Result<GpuTimes, GpuError> {
-        if elems.is_empty() {
-            return Ok(GpuTimes::default());
-        }
+    /// Evaluate several requests (the variants of a batch) in one round: one upload, one
+    /// command submission holding one dispatch per kernel the round needs (beam_force and
+    /// beam_inertia over every full request's elements, beam_residual over every
+    /// residual-only one's), one readback. Each request's element data is made resident
+    /// as in [`evaluate`](Self::evaluate). Only a round beyond the dispatch limit
+    /// ([`max_elements`](Self::max_elements)) is split, at request boundaries.
+    ///
+    /// A request's outputs are bit-identical to evaluating it alone: every element is
+    /// its own kernel invocation, and what differs from a lone call (the inertia kernel
+    /// run for another request, the residual kernel's inertial forces computed for
+    /// another one) is dropped on the host exactly as the lone call's kernels would have
+    /// left it.
+    pub fn evaluate_batch(&mut self, reqs: &mut [EvalRequest<'_>]) -> Result<GpuTimes, GpuError> {
         let t0 = Instant::now();
-        let seg = self.resident(elems)?;
+        self.calls += 1;
+        let mut segs = Vec::with_capacity(reqs.len());
+        for r in reqs.iter() {
+            let n = r.inputs.len();
+            if r.elems.len() != n || r.out.len() < n {
+                return Err(GpuError::Other(format!(
+                    "batch of {n} inputs with {} elements and {} outputs",
+                    r.elems.len(),
+                    r.out.len()
+                )));
+            }
+            segs.push(if n == 0 {
+                None
+            } else {
+                Some(self.resident(r.elems)?)
+            });
+        }
+        self.evict_stale();
         let check_s = t0.elapsed().as_secs_f64();
-        let mut slots = std::mem::take(&mut self.index);
-        slots.clear();
-        slots.extend(self.slots(seg));
-        let r = self.dispatch(kind, &slots, inputs, inertia, out);
-        self.index = slots;
-        let mut t = r?;
+        let max = self.max_elements();
+        let mut t = GpuTimes::default();
+        let mut start = 0;
+        while start < reqs.len() {
+            let (mut end, mut nf, mut nr) = (start, 0, 0);
+            while end < reqs.len() {
+                let n = reqs[end].inputs.len();
+                let (f, r) = if reqs[end].residual {
+                    (nf, nr + n)
+                } else {
+                    (nf + n, nr)
+                };
+                if f > max || r > max {
+                    if end == start {
+                        return Err(GpuError::TooLarge(n, max));
+                    }
+                    break;
+                }
+                (nf, nr, end) = (f, r, end + 1);
+            }
+            let tt = match self.precision {
+                Precision::F32 => {
+                    self.round_as::<layout::F32>(&mut reqs[start..end], &segs[start..end])
+                }
+                Precision::F64 => {
+                    self.round_as::<layout::F64>(&mut reqs[start..end], &segs[start..end])
+                }
+            }?;
+            t.add(&tt);
+            start = end;
+        }
         t.check_s += check_s;
         t.upload_s += check_s;
         Ok(t)
     }
 
-    /// Evaluate one batch of registered elements: element i is table slot `slots[i]`
-    /// (see [`register`](Self::register)); `residual` runs the residual kernel.
-    pub fn evaluate_slots(
+    /// One round: the requests fit the dispatch limit; `segs[k]` holds request k's
+    /// element data (None: no elements).
+    fn round_as<P: Records>(
         &mut self,
-        slots: &[u32],
-        inputs: &[ElemIn],
-        residual: bool,
-        inertia: bool,
-        out: &mut [ElemOut],
+        reqs: &mut [EvalRequest<'_>],
+        segs: &[Option<Segment>],
     ) -> Result<GpuTimes, GpuError> {
-        let kind = if residual { Kind::Residual } else { Kind::Full };
-        self.dispatch(kind, slots, inputs, inertia, out)
-    }
-
-    fn dispatch(
-        &mut self,
-        kind: Kind,
-        slots: &[u32],
-        inputs: &[ElemIn],
-        inertia: bool,
-        out: &mut [ElemOut],
-    ) -> Result<GpuTimes, GpuError> {
-        match self.precision {
-            Precision::F32 => self.dispatch_as::<layout::F32>(kind, slots, inputs, inertia, out),
-            Precision::F64 => self.dispatch_as::<layout::F64>(kind, slots, inputs, inertia, out),
-        }
-    }
-
-    fn dispatch_as<P: Records>(
-        &mut self,
-        kind: Kind,
-        slots: &[u32],
-        inputs: &[ElemIn],
-        inertia: bool,
-        out: &mut [ElemOut],
-    ) -> Result<GpuTimes, GpuError> {
-        let n = inputs.len();
-        if n == 0 {
-            return Ok(GpuTimes::default());
-        }
-        if slots.len() != n || out.len() < n {
-            return Err(GpuError::Other(format!(
-                "batch of {n} inputs with {} slots and {} outputs",
-                slots.len(),
-                out.len()
-            )));
-        }
-        if n > self.max_elements() {
-            return Err(GpuError::TooLarge(n, self.max_elements()));
-        }
-        let used = self.table.mirror.len();
-        if let Some(bad) = slots.iter().find(|&&s| s as usize >= used) {
-            return Err(GpuError::Other(format!(
-                "table slot {bad} not registered ({used} slots)"
-            )));
-        }
         let t0 = Instant::now();
         // `corotate` was switched since the table was written: rewrite it in the new form
         if self.table.corotated != self.corotate {
@@ -915,6 +996,40 @@ impl GpuContext {
                 }
             }
         }
+        let mut idx_full = std::mem::take(&mut self.index);
+        let mut idx_res = std::mem::take(&mut self.index_res);
+        idx_full.clear();
+        idx_res.clear();
+        for (r, s) in reqs.iter().zip(segs) {
+            if let Some(s) = s {
+                let slots = self.slots(*s);
+                if r.residual {
+                    idx_res.extend(slots);
+                } else {
+                    idx_full.extend(slots);
+                }
+            }
+        }
+        let r = self.round_slots::<P>(reqs, &idx_full, &idx_res, t0);
+        self.index = idx_full;
+        self.index_res = idx_res;
+        r
+    }
+
+    fn round_slots<P: Records>(
+        &mut self,
+        reqs: &mut [EvalRequest<'_>],
+        idx_full: &[u32],
+        idx_res: &[u32],
+        t0: Instant,
+    ) -> Result<GpuTimes, GpuError> {
+        let (nf, nr) = (idx_full.len(), idx_res.len());
+        if nf + nr == 0 {
+            return Ok(GpuTimes::default());
+        }
+        let live = |r: &&EvalRequest<'_>| !r.inputs.is_empty();
+        let inertia_full = reqs.iter().filter(live).any(|r| !r.residual && r.inertia);
+        let inertia_res = reqs.iter().filter(live).any(|r| r.residual && r.inertia);
         let sizes = [
             std::mem::size_of::<P::In>(),
             std::mem::size_of::<P::Force>(),
@@ -922,97 +1037,116 @@ impl GpuContext {
             std::mem::size_of::<P::Residual>(),
             std::mem::size_of::<P::Acc>(),
         ];
-        self.ensure(n, sizes);
+        self.ensure(nf.max(nr), sizes);
         self.ensure_groups();
-        let with_acc = kind == Kind::Residual && inertia;
         self.up_in.clear();
+        self.up_res.clear();
         self.up_acc.clear();
         self.rot.clear();
-        for (&slot, i) in slots.iter().zip(inputs) {
-            if self.corotate {
-                let e = &self.table.mirror[slot as usize];
-                let (_, i2, q) = corotate(e, i);
-                self.up_in
-                    .extend_from_slice(bytemuck::bytes_of(&P::input(&i2)));
-                if with_acc {
-                    self.up_acc
-                        .extend_from_slice(bytemuck::bytes_of(&P::acc(&i2)));
-                }
-                self.rot.push(q);
+        // in request order; each request's elements go to the full or the residual records
+        for r in reqs.iter() {
+            let (up, acc) = if r.residual {
+                (&mut self.up_res, inertia_res)
             } else {
-                self.up_in
-                    .extend_from_slice(bytemuck::bytes_of(&P::input(i)));
-                if with_acc {
-                    self.up_acc
-                        .extend_from_slice(bytemuck::bytes_of(&P::acc(i)));
+                (&mut self.up_in, false)
+            };
+            let seg_elems = r.elems;
+            for (e, i) in seg_elems.iter().zip(r.inputs) {
+                if self.corotate {
+                    let (_, i2, q) = corotate(e, i);
+                    up.extend_from_slice(bytemuck::bytes_of(&P::input(&i2)));
+                    if acc {
+                        self.up_acc
+                            .extend_from_slice(bytemuck::bytes_of(&P::acc(&i2)));
+                    }
+                    self.rot.push(q);
+                } else {
+                    up.extend_from_slice(bytemuck::bytes_of(&P::input(i)));
+                    if acc {
+                        self.up_acc
+                            .extend_from_slice(bytemuck::bytes_of(&P::acc(i)));
+                    }
                 }
             }
         }
         let b = self.bufs.as_ref().expect("buffers sized above");
         let g = self.groups.as_ref().expect("bind groups made above");
-        let params = Params {
-            n_elem: n as u32,
-            inertia: inertia as u32,
-            ..Default::default()
+        let mut bytes_up = 0u64;
+        let mut write_params = |buf: &wgpu::Buffer, n: usize, inertia: bool| {
+            let params = Params {
+                n_elem: n as u32,
+                inertia: inertia as u32,
+                ..Default::default()
+            };
+            self.queue.write_buffer(buf, 0, bytemuck::bytes_of(&params));
+            bytes_up += std::mem::size_of::<Params>() as u64;
         };
-        let mut bytes_up = (std::mem::size_of::<Params>() + self.up_in.len()) as u64;
-        self.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        self.queue.write_buffer(&b.inputs, 0, &self.up_in);
-        if with_acc {
+        if nf > 0 {
+            write_params(&self.params, nf, inertia_full);
+        }
+        if nr > 0 {
+            write_params(&self.params_res, nr, inertia_res);
+        }
+        if nf > 0 {
+            self.queue.write_buffer(&b.inputs, 0, &self.up_in);
+            bytes_up += self.up_in.len() as u64;
+        }
+        if nr > 0 {
+            self.queue.write_buffer(&b.inputs_res, 0, &self.up_res);
+            bytes_up += self.up_res.len() as u64;
+        }
+        if inertia_res {
             self.queue.write_buffer(&b.accs, 0, &self.up_acc);
             bytes_up += self.up_acc.len() as u64;
         }
         // the slots stay the same from one Newton iteration to the next unless the batch
         // changed composition: write them only then
-        if self.last_index.as_slice() != slots {
+        if nf > 0 && self.last_index.as_slice() != idx_full {
             self.queue
-                .write_buffer(&b.index, 0, bytemuck::cast_slice(slots));
+                .write_buffer(&b.index, 0, bytemuck::cast_slice(idx_full));
             self.last_index.clear();
-            self.last_index.extend_from_slice(slots);
-            bytes_up += 4 * n as u64;
+            self.last_index.extend_from_slice(idx_full);
+            bytes_up += 4 * nf as u64;
+        }
+        if nr > 0 && self.last_index_res.as_slice() != idx_res {
+            self.queue
+                .write_buffer(&b.index_res, 0, bytemuck::cast_slice(idx_res));
+            self.last_index_res.clear();
+            self.last_index_res.extend_from_slice(idx_res);
+            bytes_up += 4 * nr as u64;
         }
         let t1 = Instant::now();
+        // (device buffer, staging buffer, bytes) of each output read back
+        let mut reads: Vec<(&wgpu::Buffer, &wgpu::Buffer, u64)> = Vec::with_capacity(3);
+        let mut dispatches = 0u64;
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            match kind {
-                Kind::Full => {
-                    pass.set_pipeline(&self.force_pipe);
-                    pass.set_bind_group(0, &g.force, &[]);
-                    pass.dispatch_workgroups((n as u32 * 12).div_ceil(WORKGROUP), 1, 1);
-                    if inertia {
-                        pass.set_pipeline(&self.inertia_pipe);
-                        pass.set_bind_group(0, &g.inertia, &[]);
-                        pass.dispatch_workgroups((n as u32).div_ceil(WORKGROUP), 1, 1);
-                    }
+            if nf > 0 {
+                pass.set_pipeline(&self.force_pipe);
+                pass.set_bind_group(0, &g.force, &[]);
+                pass.dispatch_workgroups((nf as u32 * 12).div_ceil(WORKGROUP), 1, 1);
+                reads.push((&b.force, &b.staging_force, (nf * sizes[1]) as u64));
+                dispatches += 1;
+                if inertia_full {
+                    pass.set_pipeline(&self.inertia_pipe);
+                    pass.set_bind_group(0, &g.inertia, &[]);
+                    pass.dispatch_workgroups((nf as u32).div_ceil(WORKGROUP), 1, 1);
+                    reads.push((&b.inertia, &b.staging_inertia, (nf * sizes[2]) as u64));
+                    dispatches += 1;
                 }
-                Kind::Residual => {
-                    pass.set_pipeline(&self.residual_pipe);
-                    pass.set_bind_group(0, &g.residual, &[]);
-                    pass.dispatch_workgroups((n as u32).div_ceil(WORKGROUP), 1, 1);
-                }
+            }
+            if nr > 0 {
+                pass.set_pipeline(&self.residual_pipe);
+                pass.set_bind_group(0, &g.residual, &[]);
+                pass.dispatch_workgroups((nr as u32).div_ceil(WORKGROUP), 1, 1);
+                reads.push((&b.residual, &b.staging_residual, (nr * sizes[3]) as u64));
+                dispatches += 1;
             }
         }
-        self.queue.submit([enc.finish()]);
-        self.wait()?;
-        let t2 = Instant::now();
-        // (device buffer, staging buffer, bytes) of each output read back
-        let reads: Vec<(&wgpu::Buffer, &wgpu::Buffer, u64)> = match kind {
-            Kind::Full => {
-                let mut r = vec![(&b.force, &b.staging_force, (n * sizes[1]) as u64)];
-                if inertia {
-                    r.push((&b.inertia, &b.staging_inertia, (n * sizes[2]) as u64));
-                }
-                r
-            }
-            Kind::Residual => vec![(&b.residual, &b.staging_residual, (n * sizes[3]) as u64)],
-        };
-        let mut enc = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        // the copies to the staging buffers ride in the same submission: one round trip
         for &(src, dst, bytes) in &reads {
             enc.copy_buffer_to_buffer(src, 0, dst, 0, bytes);
         }
@@ -1032,61 +1166,80 @@ impl GpuContext {
                 .map_err(|e| GpuError::Other(format!("map: {e}")))?
                 .map_err(|e| GpuError::Other(format!("map: {e}")))?;
         }
+        let t2 = Instant::now();
         let bytes_down: u64 = reads.iter().map(|r| r.2).sum();
         {
-            let view = |k: usize| {
-                let (_, dst, bytes) = reads[k];
-                dst.slice(0..bytes)
+            let view = |buf: &wgpu::Buffer, bytes: usize| {
+                buf.slice(0..bytes as u64)
                     .get_mapped_range()
                     .map_err(|e| GpuError::Other(format!("map range: {e}")))
             };
-            match kind {
-                Kind::Full => {
-                    let fview = view(0)?;
-                    let fo: &[P::Force] = bytemuck::cast_slice(&fview);
-                    if inertia {
-                        let iview = view(1)?;
-                        let io: &[P::Inertia] = bytemuck::cast_slice(&iview);
-                        for i in 0..n {
-                            P::output(&fo[i], Some(&io[i]), &mut out[i]);
+            let fview = if nf > 0 {
+                Some(view(&b.staging_force, nf * sizes[1])?)
+            } else {
+                None
+            };
+            let iview = if nf > 0 && inertia_full {
+                Some(view(&b.staging_inertia, nf * sizes[2])?)
+            } else {
+                None
+            };
+            let rview = if nr > 0 {
+                Some(view(&b.staging_residual, nr * sizes[3])?)
+            } else {
+                None
+            };
+            let fo: &[P::Force] = fview.as_deref().map_or(&[][..], bytemuck::cast_slice);
+            let io: &[P::Inertia] = iview.as_deref().map_or(&[][..], bytemuck::cast_slice);
+            let ro: &[P::Residual] = rview.as_deref().map_or(&[][..], bytemuck::cast_slice);
+            let (mut of, mut or, mut oq) = (0, 0, 0);
+            for r in reqs.iter_mut() {
+                let n = r.inputs.len();
+                let out = &mut r.out[..n];
+                if r.residual {
+                    for (k, o) in out.iter_mut().enumerate() {
+                        P::residual_output(&ro[or + k], o);
+                        if !r.inertia {
+                            // the kernel ran with inertia for another request; alone it
+                            // would have written these zeros
+                            o.s = [0.0; NDOF];
+                            o.finert = [0.0; NDOF];
+                            o.mv = [0.0; NDOF];
                         }
-                    } else {
-                        for i in 0..n {
-                            P::output(&fo[i], None, &mut out[i]);
-                        }
+                    }
+                    or += n;
+                } else {
+                    for (k, o) in out.iter_mut().enumerate() {
+                        let inert = if r.inertia { Some(&io[of + k]) } else { None };
+                        P::output(&fo[of + k], inert, o);
+                    }
+                    of += n;
+                }
+                if self.corotate {
+                    for (o, q) in out.iter_mut().zip(&self.rot[oq..oq + n]) {
+                        corotate_back(q, o, r.residual);
                     }
                 }
-                Kind::Residual => {
-                    let rview = view(0)?;
-                    let ro: &[P::Residual] = bytemuck::cast_slice(&rview);
-                    for i in 0..n {
-                        P::residual_output(&ro[i], &mut out[i]);
+                oq += n;
+                match (r.residual, r.inertia) {
+                    (false, true) => {
+                        for (o, i) in out.iter_mut().zip(r.inputs) {
+                            o.products_from_m(i);
+                        }
                     }
+                    (false, false) => {
+                        for o in out.iter_mut() {
+                            o.finert = [0.0; NDOF];
+                            o.mv = [0.0; NDOF];
+                        }
+                    }
+                    // the kernel wrote finert and mv (zeros without inertia)
+                    (true, _) => {}
                 }
             }
         }
         for &(_, dst, _) in &reads {
             dst.unmap();
-        }
-        if self.corotate {
-            for (o, q) in out.iter_mut().zip(&self.rot) {
-                corotate_back(q, o, kind == Kind::Residual);
-            }
-        }
-        match kind {
-            Kind::Full if inertia => {
-                for (o, i) in out.iter_mut().zip(inputs) {
-                    o.products_from_m(i);
-                }
-            }
-            Kind::Full => {
-                for o in out.iter_mut().take(n) {
-                    o.finert = [0.0; NDOF];
-                    o.mv = [0.0; NDOF];
-                }
-            }
-            // the kernel wrote finert and mv (zeros without inertia)
-            Kind::Residual => {}
         }
         let t3 = Instant::now();
         Ok(GpuTimes {
@@ -1095,7 +1248,10 @@ impl GpuContext {
             download_s: (t3 - t2).as_secs_f64(),
             check_s: 0.0,
             batches: 1,
-            elements: n as u64,
+            dispatches,
+            residual_dispatches: (nr > 0) as u64,
+            requests: reqs.iter().filter(live).count() as u64,
+            elements: (nf + nr) as u64,
             bytes_up,
             bytes_down,
         })
@@ -1109,7 +1265,9 @@ impl GpuContext {
     }
 }
 
-/// An [`ElementEval`] on one GPU context, for a single solver (tests, `run`).
+/// An [`ElementEval`] on one GPU context. Shared by the workers of a campaign: the
+/// context's lock serialises their rounds, so one worker's assembly and factorization
+/// overlap another's round on the device.
 pub struct GpuEval {
     ctx: Mutex<GpuContext>,
     times: Mutex<GpuTimes>,
@@ -1161,6 +1319,15 @@ impl GpuEval {
 }
 
 impl ElementEval for GpuEval {
+    fn evaluate_batch(&self, reqs: &mut [EvalRequest<'_>]) -> Result<(), EvalError> {
+        let mut ctx = self.ctx.lock().unwrap_or_else(|p| p.into_inner());
+        let t = ctx.evaluate_batch(reqs).map_err(|e| EvalError {
+            backend: self.name.clone(),
+            message: e.to_string(),
+        })?;
+        self.times.lock().unwrap_or_else(|p| p.into_inner()).add(&t);
+        Ok(())
+    }
     fn evaluate(
         &self,
         elems: &[ElemData],

@@ -4,12 +4,12 @@
 //! the kernel counts are from the WGSL, the device figures from the vendor's data sheet,
 //! the CPU costs measured on the development machine (`cargo bench --bench gpu`).
 //!
-//! Per Newton round of B element evaluations (the batcher takes half the variants in
-//! flight per round):
+//! Per Newton round of B element evaluations (a round is one batch of the batch driver:
+//! every variant of a worker's batch, one dispatch per kernel):
 //! - CPU: B·c / cores, c the mean element-evaluation cost of one thread;
 //! - GPU: L + B·(g + h): a fixed round-trip latency L, per element the larger of the
 //!   kernel's compute and device-memory time plus the host-link transfer (g), and the
-//!   host-side record conversion on the batcher thread (h).
+//!   host-side record conversion on the worker thread that holds the device (h).
 //!
 //! The GPU overtakes at B* = L / (c/cores − g − h). With the elements on the GPU the CPU
 //! still assembles and factorizes (cost r per element-iteration); that work is the bound
@@ -91,7 +91,8 @@ pub struct CpuSpec {
     pub residual_s: f64,
     /// assembly, factorization and integrator per element-iteration
     pub rest_s: f64,
-    /// host-side record conversion of the GPU path (batcher thread), full / residual
+    /// host-side record conversion of the GPU path (per element of a round), full /
+    /// residual
     pub host_full_s: f64,
     pub host_residual_s: f64,
 }
@@ -172,17 +173,17 @@ pub fn predict(
 }
 
 /// `--backend auto`'s choice for a hardware adapter: true when the model predicts the
-/// GPU element stage faster than the CPU's for this campaign. `variants_in_flight` run
-/// at once (the GPU path's solver threads, at most the variants), half of them per round
-/// (the batcher's rule), `elements` per variant; H100-class device, this machine's CPU
-/// costs. Software adapters are never chosen by `auto` (the caller checks).
+/// GPU element stage faster than the CPU's for this campaign: `variants_per_round` (the
+/// batch size, see `crate::ensemble::batch_size`) of `elements` each in one round;
+/// H100-class device, this machine's CPU costs. Software adapters are never chosen by
+/// `auto` (the caller checks).
 pub fn prefer_gpu(
     elements: usize,
-    variants_in_flight: usize,
+    variants_per_round: usize,
     cores: usize,
     precision: Precision,
 ) -> bool {
-    let batch = elements * variants_in_flight.div_ceil(2).max(1);
+    let batch = elements * variants_per_round.max(1);
     let m = predict(batch, cores, precision, &H100, &THIS_CPU);
     m.gpu_s < m.cpu_s
 }
@@ -196,7 +197,7 @@ mod tests {
         for p in [Precision::F64, Precision::F32] {
             let m = predict(1, 2, p, &H100, &THIS_CPU);
             let b = m.overtake_batch.expect("the H100 model overtakes the CPU");
-            // batch = elements × ceil(in_flight / 2): one variant of `e` elements
+            // batch = elements × variants per round: one variant of `e` elements
             let below = b.floor() as usize;
             let above = b.ceil() as usize + 1;
             if below >= 1 {

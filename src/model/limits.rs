@@ -186,8 +186,7 @@ fn file_kind(meta: &std::fs::Metadata) -> &'static str {
     }
 }
 
-/// Most worker threads a campaign may ask for: 4 per core, at least 256 (a GPU sweep
-/// runs up to 128 solver threads that mostly wait on the batcher). More only costs
+/// Most worker threads a campaign may ask for: 4 per core, at least 256. More only costs
 /// memory and scheduling; 100 000 threads made the machine unresponsive.
 pub fn max_threads() -> usize {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());

@@ -1,25 +1,31 @@
 //! The element stage a run or sweep uses: `--backend` / `--precision` resolved, with the
 //! `auto` policy.
 
+use std::sync::Arc;
+
 use anyhow::anyhow;
 
 use crate::cli::BackendArgs;
 
-/// Solver threads of a GPU sweep (variants in flight, each waiting on the batcher).
-pub(crate) const GPU_BATCH_THREADS: usize = 128;
+/// Default variants per batch of a GPU sweep (`--batch`), before `batch_size` caps it at
+/// the variants per worker. A GPU round costs a fixed round trip plus a little per
+/// element, so the batch should be as large as the campaign allows: all of a worker's
+/// variants. The cap bounds what a worker holds at once (each variant of a batch keeps
+/// its state, history and LU in memory until the batch ends) and keeps the round within
+/// one dispatch (the dispatch limit is about 350 000 elements on lavapipe and larger on
+/// hardware).
+pub(crate) const GPU_DEFAULT_BATCH: usize = 1024;
 
-/// Resolve `--backend`/`--precision` into an element stage (and the batcher behind it).
+/// Resolve `--backend`/`--precision` into an element stage, with the GPU evaluator
+/// behind it (shared by every worker: its statistics are the campaign's).
 pub(crate) fn choose_stage(
     b: &BackendArgs,
     n_variants: usize,
     n_elem: usize,
     cores: usize,
-) -> anyhow::Result<(
-    latdyn::ensemble::Stage,
-    Option<std::sync::Arc<latdyn::gpu::batch::Batcher>>,
-)> {
+) -> anyhow::Result<(latdyn::ensemble::Stage, Option<Arc<latdyn::gpu::GpuEval>>)> {
     use latdyn::ensemble::Stage;
-    use latdyn::gpu::{self, batch::Batcher, GpuContext, Precision};
+    use latdyn::gpu::{self, GpuContext, GpuEval, Precision};
     let precision = Precision::parse(&b.precision).map_err(|e| anyhow!(e))?;
     let want_gpu = match b.backend.as_str() {
         "cpu" => {
@@ -32,10 +38,11 @@ pub(crate) fn choose_stage(
         }
         "gpu" => true,
         _ => {
-            let in_flight = n_variants.min(GPU_BATCH_THREADS.max(cores));
+            // a round is one batch: the variants per worker, as `sweep` defaults them
+            let per_round = latdyn::ensemble::batch_size(GPU_DEFAULT_BATCH, n_variants, cores);
             // the roofline model of docs/gpu-roofline.md: a prediction (no hardware GPU
             // measured), for an H100-class device against this CPU's measured element cost
-            if !gpu::policy::prefer_gpu(n_elem, in_flight, cores, precision) {
+            if !gpu::policy::prefer_gpu(n_elem, per_round, cores, precision) {
                 false
             } else {
                 // hardware only; a missing adapter or f64 support just means the CPU
@@ -50,15 +57,15 @@ pub(crate) fn choose_stage(
         .map_err(|e| anyhow!("--backend {}: {e}", b.backend))?;
     let adapter = ctx.adapter.label();
     eprintln!("element stage: gpu on {adapter}, {}", precision.as_str());
-    let batcher = Batcher::start(ctx, std::time::Duration::from_millis(2));
-    let bb = batcher.clone();
+    let eval = Arc::new(GpuEval::new(ctx));
+    let shared = eval.clone();
     let stage = Stage {
         backend: "gpu".into(),
         precision: precision.as_str().into(),
         adapter,
-        make: Some(std::sync::Arc::new(move || {
-            bb.client() as std::sync::Arc<dyn latdyn::element::ElementEval>
+        make: Some(Arc::new(move || {
+            shared.clone() as Arc<dyn latdyn::element::ElementEval>
         })),
     };
-    Ok((stage, Some(batcher)))
+    Ok((stage, Some(eval)))
 }

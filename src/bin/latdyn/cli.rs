@@ -273,14 +273,13 @@ pub(crate) struct SweepArgs {
     pub(crate) output: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) backend: BackendArgs,
-    /// worker threads (default: all cores; with a GPU backend, one per variant in flight,
-    /// up to 128); from 1 to 4 per core or 256, whichever is more
+    /// worker threads (default: all cores); from 1 to 4 per core or 256, whichever is more
     #[arg(long, value_parser = latdyn::model::limits::parse_threads)]
     pub(crate) threads: Option<usize>,
     /// variants per batch: a batch's variants advance in lockstep on one thread and their
     /// Newton iterations' element stages are evaluated together, one call per round
-    /// (default: 8 on the CPU, 1 with a GPU backend; never more than the variants per
-    /// thread). Results do not depend on it.
+    /// (default: 8 on the CPU; with a GPU backend 1024, one dispatch per kernel for the
+    /// whole batch; never more than the variants per thread). Results do not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub(crate) batch: Option<u32>,
     /// run only the K-th of N interleaved subsets of the variants: K/N

@@ -100,7 +100,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         m.solver.accuracy = args.accuracy;
     }
     let target = args.output.as_deref().map(claim_output).transpose()?;
-    let (stage, _batcher) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
+    let (stage, _gpu) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
     let mut sink = match target {
         Some(t) => Some(RunSink::open(&m, t, &stage).map_err(|e| anyhow!("{e}"))?),
         None => None,

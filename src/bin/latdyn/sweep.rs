@@ -3,7 +3,7 @@
 use anyhow::{anyhow, bail};
 use latdyn::model::{self, Model};
 
-use crate::backend::{choose_stage, GPU_BATCH_THREADS};
+use crate::backend::{choose_stage, GPU_DEFAULT_BATCH};
 use crate::cli::{MergeArgs, SweepArgs};
 use crate::{
     claim_output, emit, fail, injected_panic, stop_flag, EXIT_FAILED, EXIT_INTERNAL,
@@ -158,23 +158,20 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         .map(claim_output)
         .transpose()?;
     let n_var = variants.len().max(1);
-    let (stage, batcher) = choose_stage(&args.backend, n_var, n_elem, cores)?;
-    let threads = args.threads.unwrap_or(if stage.make.is_some() {
-        // GPU: one solver thread per variant in flight; they sleep while the batcher
-        // evaluates their elements, so many more than cores keeps the batches large
-        n_var.clamp(1, GPU_BATCH_THREADS)
-    } else {
-        cores
-    });
+    let (stage, gpu_eval) = choose_stage(&args.backend, n_var, n_elem, cores)?;
+    // GPU too: one worker per core, each driving its batch; while one worker's round is
+    // on the device, the others assemble and factorize
+    let threads = args.threads.unwrap_or(cores);
     let c = Campaign {
         model_path: args.model.model.clone(),
         base: args.model.set.clone(),
         variants,
         threads,
         batch: args.batch.map_or(
-            // the GPU's batcher gathers variants across threads, one client per batch
+            // GPU: each round is one dispatch per kernel over its batch, so the batch is
+            // every variant of a worker (see GPU_DEFAULT_BATCH)
             if stage.make.is_some() {
-                1
+                GPU_DEFAULT_BATCH
             } else {
                 latdyn::ensemble::DEFAULT_BATCH
             },
@@ -277,16 +274,22 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         }
     }
     .map_err(|e| anyhow!("{e}"))?;
-    if let Some(b) = &batcher {
-        let st = b.stats();
+    let gpu_stats = gpu_eval.as_ref().map(|g| (g.times(), g.model_uploads()));
+    if let (Some(g), Some((t, model))) = (&gpu_eval, &gpu_stats) {
         eprintln!(
-            "gpu {}: {} rounds, {:.1} requests per round, upload {:.3} s, kernels {:.3} s, download {:.3} s",
-            b.name(),
-            st.rounds,
-            st.requests as f64 / st.rounds.max(1) as f64,
-            st.gpu.upload_s,
-            st.gpu.kernel_s,
-            st.gpu.download_s
+            "{}: {} rounds, {:.2} dispatches per round ({} residual-only), {:.1} requests per \
+             round; upload {:.3} s, kernels {:.3} s, download {:.3} s; model data {} upload(s) \
+             of {} B",
+            latdyn::element::ElementEval::name(&**g),
+            t.batches,
+            t.dispatches as f64 / t.batches.max(1) as f64,
+            t.residual_dispatches,
+            t.requests as f64 / t.batches.max(1) as f64,
+            t.upload_s,
+            t.kernel_s,
+            t.download_s,
+            model.uploads,
+            model.bytes
         );
     }
     if let Some(b) = &bar {
@@ -434,6 +437,22 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             "element_stage_calls": batch_counts.calls,
             "requests_per_call": per_call,
         });
+        if let Some((t, model)) = &gpu_stats {
+            v["gpu"] = serde_json::json!({
+                "rounds": t.batches,
+                "dispatches": t.dispatches,
+                "residual_dispatches": t.residual_dispatches,
+                "requests": t.requests,
+                "elements": t.elements,
+                "upload_s": t.upload_s,
+                "kernel_s": t.kernel_s,
+                "download_s": t.download_s,
+                "bytes_up": t.bytes_up,
+                "bytes_down": t.bytes_down,
+                "model_uploads": model.uploads,
+                "model_bytes": model.bytes,
+            });
+        }
         if args.verify.is_some() {
             v["verification"] = match &verification {
                 Some(x) => x.to_json(),
