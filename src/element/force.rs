@@ -7,7 +7,7 @@
 
 use super::ad::{mcol, vcross, vdot, Real, M3, V3};
 use super::kinematics::*;
-use crate::math::Vec3;
+use crate::math::{Mat3, Vec3};
 use crate::model::BeamProps;
 
 /// First derivatives of the deformation measures with respect to the 12 element dofs
@@ -183,6 +183,30 @@ pub fn force_generic<R: Real>(
 pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
     let (t1, t2) = node_frames(e, s);
     force_generic(e, s.u1, s.u2, &t1, &t2)
+}
+
+/// The residual-only evaluation's shared pieces: the node frames, the f64 gradient, the
+/// internal force and the strain energy, each bit-identical to [`node_frames`],
+/// [`gradient`], [`internal_force`] and [`strain_energy`] (which would compute the frames
+/// and the kinematics again).
+pub(super) fn residual_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, f64) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
+    let f = force_from(&g, &m, n);
+    let u = energy(&e.props, e.l0, &g.kin);
+    ((t1, t2), g, f, u)
+}
+
+/// [`internal_force_tangent`] and the strain energy (bit-identical to [`strain_energy`],
+/// from the same kinematics instead of computing them again).
+pub fn internal_force_tangent_energy(e: &ElemData, s: &ElemState) -> (Vec12, Mat12, f64) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
+    let f = force_from(&g, &m, n);
+    let k = tangent(&e.props, e.l0, &g, &m, n);
+    (f, k, energy(&e.props, e.l0, &g.kin))
 }
 
 /// K += a bᵀ over the rows `rows` (a indexed by row, b by column).

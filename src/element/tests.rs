@@ -447,6 +447,15 @@ fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() 
         let (mut full, mut res) = (ElemOut::default(), ElemOut::default());
         CpuEval::one(&e, &i, true, &mut full);
         CpuEval::one_residual(&e, &i, true, &mut res);
+        // the stage shares one gradient among force, energy and inertia; each must stay
+        // what the stand-alone functions give
+        let alone = inertia_residual(&e, &s, &v12, &acc);
+        assert_eq!(res.f, internal_force(&e, &s));
+        assert_eq!(res.energy, strain_energy(&e, &s));
+        assert_eq!(
+            (res.s, res.finert, res.mv),
+            (alone.s, alone.finert, alone.mv)
+        );
         assert_eq!(full.f, res.f);
         assert_eq!(full.energy, res.energy);
         assert_eq!(full.s, res.s);
