@@ -9,7 +9,7 @@ res = {"old": [], "new": []}
 for r in range(reps):
     for tag, exe in (("old", old), ("new", new)):
         cmd = [exe, "sweep", "models/flapping_blade.toml", "--vary", f"omega=20:40:{variants}",
-               "--threads", "2", "--backend", "cpu", "-o", fos.path.join(tempfile.gettempdir(), f"campaign_cpu_{tag}.h5")]
+               "--threads", "2", "--backend", "cpu", "-o", os.path.join(tempfile.gettempdir(), f"campaign_cpu_{tag}.h5")]
         u0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
