@@ -1,7 +1,9 @@
 //! Element kernel timings (prints, never asserts): calls per second of the internal
 //! force + tangent and of the inertia terms, on a deformed, rotated element.
 
-use latdyn::element::reference::{inertia_columns, internal_force_tangent_columns};
+use latdyn::element::reference::{
+    inertia_columns, internal_force_tangent_columns, internal_force_tangent_dual,
+};
 use latdyn::element::*;
 use latdyn::math::*;
 use latdyn::model::BeamProps;
@@ -39,7 +41,18 @@ fn main() {
     }
     let dt = t.elapsed().as_secs_f64() / n as f64;
     let t_tangent = dt;
-    println!("internal_force_tangent: {:.2} us/call", dt * 1e6);
+    println!(
+        "internal_force_tangent: {:.2} us/call   (closed form)",
+        dt * 1e6
+    );
+    let t = Instant::now();
+    for _ in 0..n {
+        let (f, k) = internal_force_tangent_dual(&e, std::hint::black_box(&s));
+        acc += f[0] + k[3][4];
+    }
+    let dt = t.elapsed().as_secs_f64() / n as f64;
+    let t_dual = dt;
+    println!("  (9-lane dual pass:    {:.2} us/call)", dt * 1e6);
     let t = Instant::now();
     for _ in 0..n {
         let (f, k) = internal_force_tangent_columns(&e, std::hint::black_box(&s));
@@ -90,7 +103,7 @@ fn main() {
         "internal_force:         {:.2} us/call   ({acc:.1})",
         dt * 1e6
     );
-    flop_report(&e, &s, t_tangent, t_inertia, t_residual);
+    flop_report(&e, &s, [t_tangent, t_dual, t_inertia, t_residual]);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -199,6 +212,14 @@ fn force_ops(e: &ElemData, s: &ElemState) -> [u64; 4] {
     take_ops()
 }
 
+/// Operations of the closed-form internal force and tangent (one scalar pass).
+fn tangent_ops(e: &ElemData, s: &ElemState) -> [u64; 4] {
+    let (u1, u2, t1, t2) = counted_frames(e, s);
+    take_ops();
+    std::hint::black_box(force_tangent_generic(e, u1, u2, &t1, &t2));
+    take_ops()
+}
+
 /// Operations of one pass of the position fields at the 4 Gauss points.
 fn field_ops(e: &ElemData, s: &ElemState) -> [u64; 4] {
     let (u1, u2, t1, t2) = counted_frames(e, s);
@@ -260,12 +281,15 @@ unsafe fn fma_peak() -> f64 {
 }
 
 /// Print flops per call, GFLOP/s at the measured call times, and the fraction of the peak.
-fn flop_report(e: &ElemData, s: &ElemState, t_tangent: f64, t_inertia: f64, t_residual: f64) {
+fn flop_report(e: &ElemData, s: &ElemState, times: [f64; 4]) {
+    let [t_tangent, t_dual, t_inertia, t_residual] = times;
     let f = force_ops(e, s);
     let fld = field_ops(e, s);
     let grad = gradient_ops(e, s);
-    // internal force + tangent: one f64 pass and one 9-lane vector-dual pass
-    let tangent = flops(f, F64) + flops(f, dual_vec(9));
+    // internal force + tangent in closed form: one f64 pass
+    let tangent = flops(tangent_ops(e, s), F64);
+    // the dual reference: one f64 pass and one 9-lane vector-dual pass
+    let dual = flops(f, F64) + flops(f, dual_vec(9));
     // rank-1 updates over the 36 (Gauss point, field, component) rows of 12 dofs
     let rank = |per_row: u64| 36 * per_row;
     // S: one hyper-dual field pass, then w_q h_q g_q over the rows
@@ -286,6 +310,7 @@ fn flop_report(e: &ElemData, s: &ElemState, t_tangent: f64, t_inertia: f64, t_re
     println!("\nfloating-point work per element call (counted) and achieved rate, one core:");
     for (name, fl, t) in [
         ("internal_force_tangent", tangent, t_tangent),
+        ("  (9-lane dual reference)", dual, t_dual),
         ("inertia (M, S, C)", inertia, t_inertia),
         ("inertia_residual (M a + S, M v)", residual, t_residual),
     ] {

@@ -1,8 +1,11 @@
 //! Internal force and tangent of the beam element: the closed-form gradient of the
-//! Bernoulli strain energy and its derivative in vector-dual lanes. The production route
-//! of [`super::CpuEval`]; its WGSL twin is `shaders/beam_force.wgsl`.
+//! Bernoulli strain energy and its derivative, also in closed form (material part
+//! Bᵀ H B plus the geometric part of the moments and the axial force). The production
+//! route of [`super::CpuEval`]; its WGSL twin is `shaders/beam_force.wgsl`, which still
+//! takes the tangent as the dual-number derivative of the force, column by column (the
+//! route kept as [`super::reference::internal_force_tangent_dual`]).
 
-use super::ad::{mcol, vdot, DualVec, Real, M3, V3};
+use super::ad::{mcol, vcross, vdot, Real, M3, V3};
 use super::kinematics::*;
 use crate::math::{Mat3, Vec3};
 use crate::model::BeamProps;
@@ -22,6 +25,14 @@ pub struct Grad<R> {
     pub dphi: [[R; NDOF]; 6],
     /// chord length ℓ per dof
     pub dlen: [R; NDOF],
+    /// the frame spin in convected components [θx, θy, θz] per dof (T_Cᵀ `dtheta`)
+    pub spin: [[R; NDOF]; 3],
+    /// a/b of n = a e + b t_c2 (n node 1's y axis)
+    pub ab: R,
+    /// D_i = T_Cᵀ T_i of node 1 and node 2
+    pub rel: [M3<R>; 2],
+    /// ψ_i = T_Cᵀ(δπ_i − δθ_C) per node i and dof (2 × 3 × 12)
+    pub psi: [[[R; NDOF]; 3]; 2],
 }
 
 /// Deformation measures and their first derivatives (generic: in [`Dual`] numbers the
@@ -69,6 +80,8 @@ pub fn gradient<R: Real>(
         }
     }
     let mut dphi = [[z; NDOF]; 6];
+    let mut rel = [[[z; 3]; 3]; 2];
+    let mut psis = [[[z; NDOF]; 3]; 2];
     for (i, t) in [t1, t2].iter().enumerate() {
         // D = T_Cᵀ T_i and G = ½(tr D I − D)
         let mut d = [[z; 3]; 3];
@@ -95,14 +108,20 @@ pub fn gradient<R: Real>(
             let psi = [vdot(e, w), vdot(tc2, w), vdot(tc3, w)];
             for r in 0..3 {
                 dphi[3 * i + r][j] = g[r][0] * psi[0] + g[r][1] * psi[1] + g[r][2] * psi[2];
+                psis[i][r][j] = psi[r];
             }
         }
+        rel[i] = d;
     }
     Grad {
         kin,
         dtheta,
         dphi,
         dlen,
+        spin: [thx, thy, thz],
+        ab,
+        rel,
+        psi: psis,
     }
 }
 
@@ -130,6 +149,20 @@ pub(super) fn energy_partials<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> ([
     )
 }
 
+/// f_j = N ∂ℓ/∂q_j + Σ_a m_a ∂φ_a/∂q_j from the gradient and the energy partials.
+#[inline]
+fn force_from<R: Real>(g: &Grad<R>, m: &[R; 6], n: R) -> [R; NDOF] {
+    let mut f = [R::cst(0.0); NDOF];
+    for (j, fj) in f.iter_mut().enumerate() {
+        let mut acc = n * g.dlen[j];
+        for a in 0..6 {
+            acc = acc + m[a] * g.dphi[a][j];
+        }
+        *fj = acc;
+    }
+    f
+}
+
 /// Internal force f = ∂U/∂q from the closed-form gradient, generic over the scalar (public
 /// so the element bench can count its floating-point operations).
 #[inline]
@@ -142,15 +175,7 @@ pub fn force_generic<R: Real>(
 ) -> [R; NDOF] {
     let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
     let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
-    let mut f = [R::cst(0.0); NDOF];
-    for (j, fj) in f.iter_mut().enumerate() {
-        let mut acc = n * g.dlen[j];
-        for a in 0..6 {
-            acc = acc + m[a] * g.dphi[a][j];
-        }
-        *fj = acc;
-    }
-    f
+    force_from(&g, &m, n)
 }
 
 /// Internal force vector f = ∂U/∂q: the forces and moments the element needs from its
@@ -160,77 +185,216 @@ pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
     force_generic(e, s.u1, s.u2, &t1, &t2)
 }
 
-/// Derivative lanes of the vector-dual passes: node 2's translation (3), node 1's spin
-/// (3), node 2's spin (3). Node 1's translation needs no lanes: the element sees the node
-/// positions only through the chord change u2 − u1 (and, in the position field, linearly
-/// through u1), so every derivative along u1 that the tangents use is the negated one
-/// along u2, exactly (negating the seeds negates every lane bit for bit).
-pub(super) const LANES: usize = 9;
-pub(super) const LANE_T2: usize = 0;
-pub(super) const LANE_R1: usize = 3;
-pub(super) const LANE_R2: usize = 6;
+/// The residual-only evaluation's shared pieces: the node frames, the f64 gradient, the
+/// internal force and the strain energy, each bit-identical to [`node_frames`],
+/// [`gradient`], [`internal_force`] and [`strain_energy`] (which would compute the frames
+/// and the kinematics again).
+pub(super) fn residual_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, f64) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
+    let f = force_from(&g, &m, n);
+    let u = energy(&e.props, e.l0, &g.kin);
+    ((t1, t2), g, f, u)
+}
 
-/// The element-dof column of each K/C column from lane results: (lane, sign).
-#[inline]
-pub(super) fn lane_of_dof(j: usize) -> (usize, f64) {
-    match j / 3 {
-        0 => (LANE_T2 + j % 3, -1.0),
-        1 => (LANE_R1 + j % 3, 1.0),
-        2 => (LANE_T2 + j % 3, 1.0),
-        _ => (LANE_R2 + j % 3, 1.0),
+/// [`internal_force_tangent`] and the strain energy (bit-identical to [`strain_energy`],
+/// from the same kinematics instead of computing them again).
+pub fn internal_force_tangent_energy(e: &ElemData, s: &ElemState) -> (Vec12, Mat12, f64) {
+    let (t1, t2) = node_frames(e, s);
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
+    let f = force_from(&g, &m, n);
+    let k = tangent(&e.props, e.l0, &g, &m, n);
+    (f, k, energy(&e.props, e.l0, &g.kin))
+}
+
+/// K += a bᵀ over the rows `rows` (a indexed by row, b by column).
+#[inline(always)]
+fn rank1<R: Real>(
+    k: &mut [[R; NDOF]; NDOF],
+    rows: std::ops::Range<usize>,
+    a: &[R; NDOF],
+    b: &[R; NDOF],
+) {
+    for r in rows {
+        let ar = a[r];
+        for (x, y) in k[r].iter_mut().zip(b) {
+            *x = *x + ar * *y;
+        }
     }
 }
 
-/// Node position and frame with the vector-dual lanes of [`LANES`]: `tr` the lane of the
-/// position's x axis (None: no position lanes), `rot` the lane of the spin about x.
-#[inline]
-pub(super) fn perturb_lanes(
-    x: Vec3,
-    t: &Mat3,
-    tr: Option<usize>,
-    rot: usize,
-) -> (V3<DualVec<LANES>>, M3<DualVec<LANES>>) {
-    let xp = [0, 1, 2].map(|i| {
-        let mut d = [0.0; LANES];
-        if let Some(l) = tr {
-            d[l + i] = 1.0;
-        }
-        DualVec::new(x[i], d)
-    });
-    let mut tp = [[DualVec::new(0.0, [0.0; LANES]); 3]; 3];
-    for j in 0..3 {
-        let tj = crate::math::col(t, j);
-        for i in 0..3 {
-            tp[i][j].v = tj[i];
-        }
-        for m in 0..3 {
-            let mut w = [0.0; 3];
-            w[m] = 1.0;
-            let a = crate::math::cross(w, tj);
-            for i in 0..3 {
-                tp[i][j].d[rot + m] = a[i];
-            }
-        }
-    }
-    (xp, tp)
-}
-
-/// Internal force and its consistent tangent K_jk = ∂f_j/∂q_k, the state perturbed
-/// multiplicatively (T ← exp(δπ̃) T): column k is the derivative of the closed-form force
-/// along dof k (one vector-dual pass for all columns), so the non-commutativity of
-/// spatial spins is included. K is symmetric at equilibrium states only. Bit-identical
-/// to [`internal_force_tangent_columns`].
+/// Internal force and its consistent tangent K_jk = ∂f_j/∂q_k in closed form, the state
+/// perturbed multiplicatively (T ← exp(δπ̃) T) so the non-commutativity of spatial spins
+/// is included; K is symmetric at equilibrium states only. f is bit-identical to
+/// [`internal_force`]; K equals the vector-dual derivative of the force
+/// ([`super::reference::internal_force_tangent_dual`]) to round-off, at a fraction of its
+/// cost (that pass carries 10-word duals through every operation of the gradient).
+///
+/// With f_j = N ∂ℓ_j + Σ_a m_a ∂φ_a,j (∂ = ∂/∂q_j; [`Grad`]), D_k the derivative along dof k:
+/// - material part Bᵀ H B: the Hessian of U in (φ, ℓ), i.e. EA/L0 ∂s ∂sᵀ (∂s = ∂ℓ + Σ h_a
+///   ∂φ_a, h = ∂s/∂φ the bending-stretch term of [`stretch`]), GJ/L0 on the twist, and per
+///   bending plane the 2 × 2 block (2EI/L0)[[2, 1], [1, 2]] + g [[4, −1], [−1, 4]], g = N L0/30;
+/// - N D_k ∂ℓ_j: ∂ℓ_j = ±e_m for a translation, and D_k e = δθ_C × e;
+/// - Σ_a m_a D_k ∂φ_a,j, from ∂φ_i = G_i ψ_i (G_i = ½(tr D_i I − D_i)): with μ_i node i's
+///   three moments and ν_i = G_iᵀ μ_i,
+///   μ_i · (D_k G_i) ψ_ij = ψ_ijᵀ A_i ψ_ik, A_i = −μ_i φ_iᵀ − ½ D_iᵀ skew(μ_i)
+///   (δD_i = skew(ψ_ik) D_i, and tr(skew(a) D_i) = −2 a·φ_i), and
+///   ν_i · D_k ψ_ij = −Θ_k · (c_ij × ν_i) − ν_i · D_k Θ_j, with Θ the frame spin in
+///   convected components ([`Grad::spin`]) and c_ij = T_Cᵀ (unit spin of dof j if it turns
+///   node i). D_k Θ_j differentiates θz = t_c2·δl/ℓ, θy = −t_c3·δl/ℓ, θx = (a/b)θy (+ e −
+///   (a/b)t_c2 on node 1's spins): the convected axes turn by Θ_k (D_k t_c2 = T_C(Θ_k × ŷ),
+///   …), D_k(1/ℓ) = −∂ℓ_k/ℓ², and a/b = n_x/n_y with n = D_1 ŷ, D_k n = ψ_1k × n.
 pub fn internal_force_tangent(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
     let (t1, t2) = node_frames(e, s);
-    let f = force_generic(e, s.u1, s.u2, &t1, &t2);
-    let (u1, tt1) = perturb_lanes(s.u1, &t1, None, LANE_R1);
-    let (u2, tt2) = perturb_lanes(s.u2, &t2, Some(LANE_T2), LANE_R2);
-    let fd = force_generic(e, u1, u2, &tt1, &tt2);
-    let k = std::array::from_fn(|r| {
-        std::array::from_fn(|c| {
-            let (l, sg) = lane_of_dof(c);
-            sg * fd[r].d[l]
-        })
+    force_tangent_generic(e, s.u1, s.u2, &t1, &t2)
+}
+
+/// [`internal_force_tangent`] generic over the scalar (public so the element bench can
+/// count its floating-point operations).
+#[inline]
+pub fn force_tangent_generic<R: Real>(
+    e: &ElemData,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+) -> ([R; NDOF], [[R; NDOF]; NDOF]) {
+    let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
+    let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
+    let f = force_from(&g, &m, n);
+    (f, tangent(&e.props, e.l0, &g, &m, n))
+}
+
+/// The closed-form K of [`internal_force_tangent`] from the gradient and the energy partials.
+#[inline]
+fn tangent<R: Real>(p: &BeamProps, l0: f64, g: &Grad<R>, m: &[R; 6], n: R) -> [[R; NDOF]; NDOF] {
+    let z = R::cst(0.0);
+    let half = R::cst(0.5);
+    let four = R::cst(4.0);
+    let mut k = [[z; NDOF]; NDOF];
+    let phi = g.kin.phi;
+    let dp = &g.dphi;
+    // material part
+    let c30 = R::cst(l0 / 30.0);
+    let h = [
+        z,
+        c30 * (four * phi[1] - phi[4]),
+        c30 * (four * phi[2] - phi[5]),
+        z,
+        c30 * (four * phi[4] - phi[1]),
+        c30 * (four * phi[5] - phi[2]),
+    ];
+    let ds: [R; NDOF] = std::array::from_fn(|j| {
+        g.dlen[j] + h[1] * dp[1][j] + h[2] * dp[2][j] + h[4] * dp[4][j] + h[5] * dp[5][j]
     });
-    (f, k)
+    let ea = R::cst(p.ea / l0);
+    let eads = ds.map(|x| ea * x);
+    rank1(&mut k, 0..NDOF, &ds, &eads);
+    let gj = R::cst(p.gj / l0);
+    let tw: [R; NDOF] = std::array::from_fn(|j| dp[3][j] - dp[0][j]);
+    let gjtw = tw.map(|x| gj * x);
+    rank1(&mut k, 0..NDOF, &tw, &gjtw);
+    let gn = n * c30;
+    for (c, (a1, a2)) in [(2.0 * p.eiy / l0, (1, 4)), (2.0 * p.eiz / l0, (2, 5))] {
+        let (d11, d12) = (R::cst(2.0 * c) + four * gn, R::cst(c) - gn);
+        let r1: [R; NDOF] = std::array::from_fn(|j| d11 * dp[a1][j] + d12 * dp[a2][j]);
+        let r2: [R; NDOF] = std::array::from_fn(|j| d12 * dp[a1][j] + d11 * dp[a2][j]);
+        rank1(&mut k, 0..NDOF, &dp[a1], &r1);
+        rank1(&mut k, 0..NDOF, &dp[a2], &r2);
+    }
+    // geometric part: the moments' share, Σ_i ψ_iᵀ A_i ψ_i + the rotation rows' −(c × ν_i)·Θ
+    let tc = &g.kin.tc;
+    // ε_m = T_Cᵀ x̂_m: row m of T_C
+    let eps = |mm: usize| tc[mm];
+    let [sx, sy, sz] = &g.spin;
+    let mut nu = [z; 3];
+    for i in 0..2 {
+        let mu = [m[3 * i], m[3 * i + 1], m[3 * i + 2]];
+        let ph = [phi[3 * i], phi[3 * i + 1], phi[3 * i + 2]];
+        let d = &g.rel[i];
+        // G_iᵀ μ_i = ½(tr D μ − Dᵀ μ)
+        let tr = d[0][0] + d[1][1] + d[2][2];
+        let nui: [R; 3] = std::array::from_fn(|c| {
+            half * (tr * mu[c] - (d[0][c] * mu[0] + d[1][c] * mu[1] + d[2][c] * mu[2]))
+        });
+        // A = −μ φᵀ − ½ Dᵀ skew(μ), with (Dᵀ skew μ)[r][c] = Σ_s D[s][r] (skew μ)[s][c]
+        let sk = [[z, -mu[2], mu[1]], [mu[2], z, -mu[0]], [-mu[1], mu[0], z]];
+        let a: [[R; 3]; 3] = std::array::from_fn(|r| {
+            std::array::from_fn(|c| {
+                -(mu[r] * ph[c])
+                    - half * (d[0][r] * sk[0][c] + d[1][r] * sk[1][c] + d[2][r] * sk[2][c])
+            })
+        });
+        let ps = &g.psi[i];
+        for r in 0..3 {
+            let pr: [R; NDOF] = std::array::from_fn(|j| {
+                a[r][0] * ps[0][j] + a[r][1] * ps[1][j] + a[r][2] * ps[2][j]
+            });
+            rank1(&mut k, 0..NDOF, &ps[r], &pr);
+        }
+        // rows of node i's spins: −(ε_m × ν_i) · Θ_k
+        for mm in 0..3 {
+            let c = vcross(eps(mm), nui);
+            let row = &mut k[6 * i + 3 + mm];
+            for j in 0..NDOF {
+                row[j] = row[j] - (c[0] * sx[j] + c[1] * sy[j] + c[2] * sz[j]);
+            }
+        }
+        for c in 0..3 {
+            nu[c] = nu[c] + nui[c];
+        }
+    }
+    // D_k(a/b): a/b = n_x/n_y, n = D_1 ŷ in convected components, D_k n = ψ_1k × n
+    let nc = [g.rel[0][0][1], g.rel[0][1][1], g.rel[0][2][1]];
+    let ab = g.ab;
+    let inc = R::cst(1.0) / nc[1];
+    let ps1 = &g.psi[0];
+    let dab: [R; NDOF] = std::array::from_fn(|j| {
+        let cx = ps1[1][j] * nc[2] - ps1[2][j] * nc[1];
+        let cy = ps1[2][j] * nc[0] - ps1[0][j] * nc[2];
+        (cx - ab * cy) * inc
+    });
+    // the translation rows: ∂ℓ_j = E_j, θz_j = C2_j/ℓ, θy_j = −C3_j/ℓ with E, C2, C3 the
+    // signed components of e, t_c2, t_c3; N D_k ∂ℓ_j − ν · D_k Θ_j as three rank-one terms
+    let il = R::cst(1.0) / g.kin.len;
+    let il2 = il * il;
+    let alpha = nu[0] * ab + nu[1];
+    let mut ev = [z; NDOF];
+    let mut c2 = [z; NDOF];
+    let mut c3 = [z; NDOF];
+    for mm in 0..3 {
+        let t = eps(mm);
+        ev[mm] = -t[0];
+        c2[mm] = -t[1];
+        c3[mm] = -t[2];
+        ev[6 + mm] = t[0];
+        c2[6 + mm] = t[1];
+        c3[6 + mm] = t[2];
+    }
+    let (nx, nz) = (nu[0], nu[2]);
+    let be: [R; NDOF] = std::array::from_fn(|j| (alpha * sy[j] + nz * sz[j]) * il);
+    let b2: [R; NDOF] =
+        std::array::from_fn(|j| n * sz[j] - alpha * sx[j] * il + nz * g.dlen[j] * il2);
+    let b3: [R; NDOF] = std::array::from_fn(|j| {
+        -(n * sy[j]) - nz * sx[j] * il - alpha * g.dlen[j] * il2 + nx * dab[j] * il
+    });
+    for rows in [0..3, 6..9] {
+        rank1(&mut k, rows.clone(), &ev, &be);
+        rank1(&mut k, rows.clone(), &c2, &b2);
+        rank1(&mut k, rows, &c3, &b3);
+    }
+    // node 1's spin rows: θx_j = e_m − (a/b) t_c2,m, so −ν_x D_k θx_j
+    let r_e: [R; NDOF] = std::array::from_fn(|j| -(nx * ab * sz[j]));
+    let r_2: [R; NDOF] = std::array::from_fn(|j| -(nx * (sz[j] - dab[j])));
+    let r_3: [R; NDOF] = std::array::from_fn(|j| nx * (sy[j] + ab * sx[j]));
+    for mm in 0..3 {
+        let t = eps(mm);
+        let row = &mut k[3 + mm];
+        for j in 0..NDOF {
+            row[j] = row[j] + (t[0] * r_e[j] + t[1] * r_2[j] + t[2] * r_3[j]);
+        }
+    }
+    k
 }

@@ -135,6 +135,18 @@ impl GradRows {
         }
     }
 
+    /// Rows of g (no rates) from the element's f64 gradient at frames `frames`:
+    /// bit-identical to `new(.., false)`, which computes the same gradient itself.
+    fn from_gradient(e: &ElemData, g: &Grad<f64>, frames: (Mat3, Mat3)) -> Self {
+        let wf = field_weights(&e.props);
+        GradRows {
+            g: field_rows(g),
+            gdot: [[0.0; NDOF]; 36],
+            w: std::array::from_fn(|q| GAUSS4[q / 9].1 * wf[(q / 3) % 3] * e.l0),
+            frames,
+        }
+    }
+
     /// S = ∫ μ gᵀ H(v, v), H the symmetric second derivative of the position field, from
     /// one hyper-dual pass (cheaper than ġ when only S is wanted).
     fn quadratic(&self, e: &ElemData, s: &ElemState, v: &Vec12) -> Vec12 {
@@ -266,6 +278,19 @@ pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> 
     forces_from_rows(&GradRows::new(e, s, v, false), e, s, v, acc)
 }
 
+/// [`inertia_residual`] from the element's f64 gradient at its node frames (as
+/// [`super::force::residual_parts`] returns them): bit-identical, one gradient fewer.
+pub(super) fn inertia_residual_from(
+    e: &ElemData,
+    s: &ElemState,
+    g: &Grad<f64>,
+    frames: (Mat3, Mat3),
+    v: &Vec12,
+    acc: &Vec12,
+) -> InertiaForces {
+    forces_from_rows(&GradRows::from_gradient(e, g, frames), e, s, v, acc)
+}
+
 /// g_j = ∂(a, b, c)/∂q_j at the Gauss points, in closed form from [`gradient`], as 36 rows
 /// (Gauss point, field, component) of 12 dofs:
 /// δa = δx1 + ξ δl + δθ_C × (a − x1 − ξ l) + T_C δ[0, u_y, u_z],
@@ -281,7 +306,13 @@ pub fn gradients_closed_generic<R: Real>(
     t1: &M3<R>,
     t2: &M3<R>,
 ) -> [[R; NDOF]; 36] {
-    let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
+    field_rows(&gradient(e.chord0, e.l0, u1, u2, t1, t2))
+}
+
+/// The rows of [`gradients_closed_generic`] from the element's [`gradient`] (so a caller
+/// that has it for the force does not compute it twice).
+#[inline]
+pub(super) fn field_rows<R: Real>(g: &Grad<R>) -> [[R; NDOF]; 36] {
     let k = &g.kin;
     let tc = &k.tc;
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;

@@ -4,6 +4,7 @@
 //! production routes of [`super::force`] and [`super::inertia`] against an independent
 //! derivation.
 
+use super::ad::{DualVec, M3, V3};
 use super::force::*;
 use super::inertia::*;
 use super::kinematics::*;
@@ -144,5 +145,80 @@ pub fn internal_force_tangent_columns(e: &ElemData, s: &ElemState) -> (Vec12, Ma
             k[r][c] = fd[r].d;
         }
     }
+    (f, k)
+}
+
+/// Derivative lanes of the vector-dual passes: node 2's translation (3), node 1's spin
+/// (3), node 2's spin (3). Node 1's translation needs no lanes: the element sees the node
+/// positions only through the chord change u2 − u1 (and, in the position field, linearly
+/// through u1), so every derivative along u1 that the tangents use is the negated one
+/// along u2, exactly (negating the seeds negates every lane bit for bit).
+const LANES: usize = 9;
+const LANE_T2: usize = 0;
+const LANE_R1: usize = 3;
+const LANE_R2: usize = 6;
+
+/// The element-dof column of each K/C column from lane results: (lane, sign).
+#[inline]
+fn lane_of_dof(j: usize) -> (usize, f64) {
+    match j / 3 {
+        0 => (LANE_T2 + j % 3, -1.0),
+        1 => (LANE_R1 + j % 3, 1.0),
+        2 => (LANE_T2 + j % 3, 1.0),
+        _ => (LANE_R2 + j % 3, 1.0),
+    }
+}
+
+/// Node position and frame with the vector-dual lanes of [`LANES`]: `tr` the lane of the
+/// position's x axis (None: no position lanes), `rot` the lane of the spin about x.
+#[inline]
+fn perturb_lanes(
+    x: Vec3,
+    t: &Mat3,
+    tr: Option<usize>,
+    rot: usize,
+) -> (V3<DualVec<LANES>>, M3<DualVec<LANES>>) {
+    let xp = [0, 1, 2].map(|i| {
+        let mut d = [0.0; LANES];
+        if let Some(l) = tr {
+            d[l + i] = 1.0;
+        }
+        DualVec::new(x[i], d)
+    });
+    let mut tp = [[DualVec::new(0.0, [0.0; LANES]); 3]; 3];
+    for j in 0..3 {
+        let tj = crate::math::col(t, j);
+        for i in 0..3 {
+            tp[i][j].v = tj[i];
+        }
+        for m in 0..3 {
+            let mut w = [0.0; 3];
+            w[m] = 1.0;
+            let a = crate::math::cross(w, tj);
+            for i in 0..3 {
+                tp[i][j].d[rot + m] = a[i];
+            }
+        }
+    }
+    (xp, tp)
+}
+
+/// Reference for the closed-form [`internal_force_tangent`] (and the production route
+/// before it): K_jk = ∂f_j/∂q_k as the derivative of the closed-form force along every
+/// dof in one vector-dual pass (state perturbed multiplicatively, T ← exp(δπ̃) T).
+/// Bit-identical to [`internal_force_tangent_columns`]; the WGSL force kernel does the
+/// same per column.
+pub fn internal_force_tangent_dual(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
+    let (t1, t2) = node_frames(e, s);
+    let f = force_generic(e, s.u1, s.u2, &t1, &t2);
+    let (u1, tt1) = perturb_lanes(s.u1, &t1, None, LANE_R1);
+    let (u2, tt2) = perturb_lanes(s.u2, &t2, Some(LANE_T2), LANE_R2);
+    let fd = force_generic(e, u1, u2, &tt1, &tt2);
+    let k = std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            let (l, sg) = lane_of_dof(c);
+            sg * fd[r].d[l]
+        })
+    });
     (f, k)
 }

@@ -6,7 +6,7 @@
 //! Inputs and outputs are flat per-element records, so a backend sees one contiguous batch
 //! per Newton iteration; the assembly gathers them before and scatters them after.
 
-use super::{force, inertia, kinematics, ElemData, ElemState, Mat12, Vec12, NDOF};
+use super::{force, inertia, ElemData, ElemState, Mat12, Vec12, NDOF};
 
 /// Per-element input of the element stage.
 #[derive(Clone, Copy, Debug)]
@@ -145,10 +145,10 @@ impl CpuEval {
     /// results are bit-identical to them).
     #[inline]
     pub fn one(e: &ElemData, i: &ElemIn, inertia: bool, o: &mut ElemOut) {
-        let (f, k) = force::internal_force_tangent(e, &i.state);
+        let (f, k, u) = force::internal_force_tangent_energy(e, &i.state);
         o.f = f;
         o.k = k;
-        o.energy = kinematics::strain_energy(e, &i.state);
+        o.energy = u;
         if inertia {
             let r = inertia::inertia_full(e, &i.state, &i.v12, &i.acc);
             o.m = r.m;
@@ -171,13 +171,15 @@ impl CpuEval {
     /// columns) and the inertial forces from the f64 field gradients (M never formed).
     #[inline]
     pub fn one_residual(e: &ElemData, i: &ElemIn, inertia: bool, o: &mut ElemOut) {
-        o.f = force::internal_force(e, &i.state);
+        // one gradient for the force, the energy and the inertial forces
+        let (frames, g, f, u) = force::residual_parts(e, &i.state);
+        o.f = f;
         o.k = [[0.0; NDOF]; NDOF];
-        o.energy = kinematics::strain_energy(e, &i.state);
+        o.energy = u;
         o.c = [[0.0; NDOF]; NDOF];
         o.m = [[0.0; NDOF]; NDOF];
         if inertia {
-            let r = inertia::inertia_residual(e, &i.state, &i.v12, &i.acc);
+            let r = inertia::inertia_residual_from(e, &i.state, &g, frames, &i.v12, &i.acc);
             o.s = r.s;
             o.finert = r.finert;
             o.mv = r.mv;

@@ -447,6 +447,15 @@ fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() 
         let (mut full, mut res) = (ElemOut::default(), ElemOut::default());
         CpuEval::one(&e, &i, true, &mut full);
         CpuEval::one_residual(&e, &i, true, &mut res);
+        // the stage shares one gradient among force, energy and inertia; each must stay
+        // what the stand-alone functions give
+        let alone = inertia_residual(&e, &s, &v12, &acc);
+        assert_eq!(res.f, internal_force(&e, &s));
+        assert_eq!(res.energy, strain_energy(&e, &s));
+        assert_eq!(
+            (res.s, res.finert, res.mv),
+            (alone.s, alone.finert, alone.mv)
+        );
         assert_eq!(full.f, res.f);
         assert_eq!(full.energy, res.energy);
         assert_eq!(full.s, res.s);
@@ -478,17 +487,90 @@ fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() 
 
 #[test]
 fn vector_lane_tangents_are_bit_identical_to_one_pass_per_column() {
-    // K comes from one vector-dual pass with 9 lanes (node 1's translation columns are
-    // the negated node 2's); each lane must do exactly the arithmetic of its own scalar
-    // pass, so the fast path changes no number anywhere
+    // the dual reference takes one vector-dual pass with 9 lanes (node 1's translation
+    // columns are the negated node 2's); each lane must do exactly the arithmetic of its
+    // own scalar pass, or the two references would not check the same thing
     let mut rng = Lcg(41);
     for _ in 0..50 {
         let (e, s) = random_case(&mut rng, 0.1);
-        let (f, k) = internal_force_tangent(&e, &s);
+        let (f, k) = internal_force_tangent_dual(&e, &s);
         let (fr, kr) = internal_force_tangent_columns(&e, &s);
         assert_eq!(f, fr);
         assert_eq!(k, kr);
     }
+}
+
+/// max |K − K_ref| / max |K_ref|
+fn rel_diff(k: &Mat12, kr: &Mat12) -> f64 {
+    let scale = kr.iter().map(|r| max_abs(r)).fold(0.0, f64::max);
+    let d = (0..NDOF)
+        .flat_map(|i| (0..NDOF).map(move |j| (i, j)))
+        .map(|(i, j)| (k[i][j] - kr[i][j]).abs())
+        .fold(0.0, f64::max);
+    d / scale
+}
+
+/// An element whose node 1 is bent by `angle` about t_c3 (node 2 by a random fraction
+/// of it): node 1's y axis n tilts towards the chord, n·t_c2 = cos(angle), so a/b and its
+/// derivative grow without bound as the angle nears 90° (the convected frame's singular
+/// position, far beyond the element's range of 60°).
+fn near_singular_case(rng: &mut Lcg, angle: f64) -> (ElemData, ElemState) {
+    let (e, mut s) = random_case(rng, 0.02);
+    let (t1, t2) = node_frames(&e, &s);
+    let k = kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let ax = [k.tc[0][2], k.tc[1][2], k.tc[2][2]];
+    s.r1 = mat_mul(&rot_exp(scale(ax, angle)), &s.r1);
+    s.r2 = mat_mul(&rot_exp(scale(ax, angle * rng.next())), &s.r2);
+    (e, s)
+}
+
+#[test]
+fn closed_form_tangent_equals_the_dual_number_tangent_to_round_off() {
+    // The Newton Jacobian changed route (closed form instead of the dual pass); it must
+    // be the same matrix, or the iterations would lose their quadratic convergence. Cases:
+    // large rotations with small to large deformation, twisted nodes (torsion near the
+    // range limit), and node 1 turned about the chord nearly to the frame's singular
+    // position (n·t_c2 → 0, where a/b and its derivative blow up). f must be unchanged.
+    let mut rng = Lcg(2026);
+    let mut worst = 0.0f64;
+    let check = |e: &ElemData, s: &ElemState, what: &str, worst: &mut f64| {
+        let (f, k) = internal_force_tangent(e, s);
+        let (fr, kr) = internal_force_tangent_dual(e, s);
+        assert_eq!(f, fr, "{what}: f changed");
+        let d = rel_diff(&k, &kr);
+        assert!(d < 1e-12, "{what}: max |K − K_dual| / max |K| = {d:e}");
+        *worst = worst.max(d);
+    };
+    for case in 0..400 {
+        let deform = [0.0, 1e-4, 0.02, 0.1, 0.3][case % 5];
+        let (e, s) = random_case(&mut rng, deform);
+        check(
+            &e,
+            &s,
+            &format!("random case {case} deform {deform}"),
+            &mut worst,
+        );
+    }
+    for case in 0..100 {
+        // node 2 twisted about the chord by up to ±1 rad against node 1
+        let (e, mut s) = random_case(&mut rng, 0.05);
+        let (t1, t2) = node_frames(&e, &s);
+        let k = kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+        let ax = [k.tc[0][0], k.tc[1][0], k.tc[2][0]];
+        s.r2 = mat_mul(&rot_exp(scale(ax, rng.next())), &s.r2);
+        check(&e, &s, &format!("twisted case {case}"), &mut worst);
+    }
+    for case in 0..100 {
+        let angle = [1.0, 1.3, 1.45, 1.52][case % 4] * if case % 8 < 4 { 1.0 } else { -1.0 };
+        let (e, s) = near_singular_case(&mut rng, angle);
+        check(
+            &e,
+            &s,
+            &format!("near-singular case {case} angle {angle}"),
+            &mut worst,
+        );
+    }
+    eprintln!("closed-form vs dual tangent: worst max|ΔK|/max|K| = {worst:e}");
 }
 
 #[test]
