@@ -16,6 +16,19 @@ use crate::cli::BackendArgs;
 /// hardware).
 pub(crate) const GPU_DEFAULT_BATCH: usize = 1024;
 
+/// Most elements (variants × elements per variant) a default GPU batch holds. A variant
+/// of a batch keeps its state, history and LU until the batch ends (a few kB per
+/// element), so without this bound a 1024-variant batch of a large model would hold
+/// hundreds of GB; 262 144 elements is about 1 GB per worker and stays within one
+/// dispatch (about 350 000 elements on lavapipe).
+const GPU_BATCH_ELEMENTS: usize = 1 << 18;
+
+/// The default GPU batch for a model of `n_elem` elements: [`GPU_DEFAULT_BATCH`] variants,
+/// fewer where they would hold more than [`GPU_BATCH_ELEMENTS`] elements (at least 1).
+pub(crate) fn gpu_default_batch(n_elem: usize) -> usize {
+    GPU_DEFAULT_BATCH.min((GPU_BATCH_ELEMENTS / n_elem.max(1)).max(1))
+}
+
 /// Resolve `--backend`/`--precision` into an element stage, with the GPU evaluator
 /// behind it (shared by every worker: its statistics are the campaign's).
 pub(crate) fn choose_stage(
@@ -39,7 +52,8 @@ pub(crate) fn choose_stage(
         "gpu" => true,
         _ => {
             // a round is one batch: the variants per worker, as `sweep` defaults them
-            let per_round = latdyn::ensemble::batch_size(GPU_DEFAULT_BATCH, n_variants, cores);
+            let per_round =
+                latdyn::ensemble::batch_size(gpu_default_batch(n_elem), n_variants, cores);
             // the roofline model of docs/gpu-roofline.md: a prediction (no hardware GPU
             // measured), for an H100-class device against this CPU's measured element cost
             if !gpu::policy::prefer_gpu(n_elem, per_round, cores, precision) {
@@ -68,4 +82,24 @@ pub(crate) fn choose_stage(
         })),
     };
     Ok((stage, Some(eval)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_gpu_batch_holds_at_most_the_element_bound_and_at_least_one_variant() {
+        // the blade (10 elements): the whole 1024 variants fit
+        assert_eq!(gpu_default_batch(10), GPU_DEFAULT_BATCH);
+        // a large model gets fewer variants per batch, never more elements than the bound
+        for n_elem in [300, 1000, 12_345, 100_000] {
+            let b = gpu_default_batch(n_elem);
+            assert!(b >= 1 && b * n_elem <= GPU_BATCH_ELEMENTS, "{n_elem}: {b}");
+            assert!((b + 1) * n_elem > GPU_BATCH_ELEMENTS || b == GPU_DEFAULT_BATCH);
+        }
+        // a model larger than the bound still runs, one variant at a time
+        assert_eq!(gpu_default_batch(1 << 20), 1);
+        assert_eq!(gpu_default_batch(0), GPU_DEFAULT_BATCH);
+    }
 }

@@ -3,7 +3,7 @@
 use anyhow::{anyhow, bail};
 use latdyn::model::{self, Model};
 
-use crate::backend::{choose_stage, GPU_DEFAULT_BATCH};
+use crate::backend::{choose_stage, gpu_default_batch};
 use crate::cli::{MergeArgs, SweepArgs};
 use crate::{
     claim_output, emit, fail, injected_panic, stop_flag, EXIT_FAILED, EXIT_INTERNAL,
@@ -169,9 +169,9 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         threads,
         batch: args.batch.map_or(
             // GPU: each round is one dispatch per kernel over its batch, so the batch is
-            // every variant of a worker (see GPU_DEFAULT_BATCH)
+            // every variant of a worker, bounded in elements (see `gpu_default_batch`)
             if stage.make.is_some() {
-                GPU_DEFAULT_BATCH
+                gpu_default_batch(n_elem)
             } else {
                 latdyn::ensemble::DEFAULT_BATCH
             },
