@@ -781,6 +781,19 @@ fn kernels_match_cpu_on_the_states_of_real_simulations() {
     }
 }
 
+/// The adapter `--backend gpu` would take for precision `p`; None (reported as skipped)
+/// when no adapter has f64 shaders.
+fn preferred_context(test: &str, p: Precision) -> Option<GpuContext> {
+    match GpuContext::open(p, true) {
+        Ok(c) => Some(c),
+        Err(gpu::GpuError::NoF64(_)) => {
+            skip(test, "no adapter with f64 shaders, f64 part not run");
+            None
+        }
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
 /// A GPU stage as `sweep --backend gpu` makes it: one evaluator shared by every worker.
 fn gpu_stage(eval: &Arc<gpu::GpuEval>, label: &str) -> latdyn::ensemble::Stage {
     let e = eval.clone();
@@ -834,13 +847,8 @@ fn rotating_beam_sweep_on_the_gpu_gives_the_cpu_frequencies_and_sensors() {
     // one adapter per precision: the preferred one (what `--backend gpu` would take)
     for p in [Precision::F32, Precision::F64] {
         let t_open = std::time::Instant::now();
-        let ctx = match GpuContext::open(p, true) {
-            Ok(c) => c,
-            Err(gpu::GpuError::NoF64(_)) => {
-                skip(test, "no adapter with f64 shaders, f64 part not run");
-                continue;
-            }
-            Err(e) => panic!("{test}: {e}"),
+        let Some(ctx) = preferred_context(test, p) else {
+            continue;
         };
         let label = format!("{} {}", ctx.adapter.label(), p.as_str());
         let _ = writeln!(
@@ -980,13 +988,8 @@ fn a_gpu_batch_gives_each_variant_its_lone_gpu_history_bit_for_bit() {
         command_line: "test".into(),
     };
     for p in [Precision::F32, Precision::F64] {
-        let ctx = match GpuContext::open(p, true) {
-            Ok(c) => c,
-            Err(gpu::GpuError::NoF64(_)) => {
-                skip(test, "no adapter with f64 shaders, f64 part not run");
-                continue;
-            }
-            Err(e) => panic!("{test}: {e}"),
+        let Some(ctx) = preferred_context(test, p) else {
+            continue;
         };
         let label = format!("{} {}", ctx.adapter.label(), p.as_str());
         let eval = Arc::new(gpu::GpuEval::new(ctx));

@@ -1295,7 +1295,8 @@ impl GpuEval {
             .unwrap_or_else(|p| p.into_inner())
             .model_uploads()
     }
-    fn run(
+    /// One request as a batch of one: the same round as in a campaign's batch.
+    fn one(
         &self,
         residual: bool,
         elems: &[ElemData],
@@ -1303,18 +1304,13 @@ impl GpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        let mut ctx = self.ctx.lock().unwrap_or_else(|p| p.into_inner());
-        let r = if residual {
-            ctx.evaluate_residual(elems, inputs, inertia, out)
-        } else {
-            ctx.evaluate(elems, inputs, inertia, out)
-        };
-        let t = r.map_err(|e| EvalError {
-            backend: self.name.clone(),
-            message: e.to_string(),
-        })?;
-        self.times.lock().unwrap_or_else(|p| p.into_inner()).add(&t);
-        Ok(())
+        self.evaluate_batch(&mut [EvalRequest {
+            elems,
+            inputs,
+            out,
+            residual,
+            inertia,
+        }])
     }
 }
 
@@ -1335,7 +1331,7 @@ impl ElementEval for GpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        self.run(false, elems, inputs, inertia, out)
+        self.one(false, elems, inputs, inertia, out)
     }
     fn evaluate_residual(
         &self,
@@ -1344,7 +1340,7 @@ impl ElementEval for GpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        self.run(true, elems, inputs, inertia, out)
+        self.one(true, elems, inputs, inertia, out)
     }
     fn name(&self) -> String {
         self.name.clone()
