@@ -405,7 +405,6 @@ impl Assembler {
                 info.gravity_energy += element::gravity_energy(ed, es, model.x0[n1], g);
             }
             let m = &o.m;
-            let mut cmat = o.c;
             if need_inertia {
                 track(info, &o.finert);
                 for i in 0..NDOF {
@@ -416,17 +415,15 @@ impl Assembler {
                     let (ra, rb) = (model.solver.rayleigh_alpha, model.solver.rayleigh_beta);
                     if ra != 0.0 || rb != 0.0 {
                         for i in 0..NDOF {
-                            let kv: f64 = (0..NDOF).map(|j| k[i][j] * v12[j]).sum();
+                            // K is stale in a residual-only evaluation, where β = 0
+                            let kv: f64 = if rb != 0.0 {
+                                (0..NDOF).map(|j| k[i][j] * v12[j]).sum()
+                            } else {
+                                0.0
+                            };
                             let fd = ra * o.mv[i] + rb * kv;
                             f[i] += fd;
                             info.damping_power += fd * v12[i];
-                        }
-                        if sink.is_some() {
-                            for i in 0..NDOF {
-                                for j in 0..NDOF {
-                                    cmat[i][j] += ra * m[i][j] + rb * k[i][j];
-                                }
-                            }
                         }
                     }
                 }
@@ -437,10 +434,18 @@ impl Assembler {
                 ch[nd].project(y[nd], fl, ml, gen);
             }
             if let Some(sk) = sink.as_deref_mut() {
+                // Rayleigh damping adds α M + β K to the velocity matrix
+                let (ra, rb) = (model.solver.rayleigh_alpha, model.solver.rayleigh_beta);
+                let rayleigh = need_inertia && c.inertia && (ra != 0.0 || rb != 0.0);
                 let mut comb = [[0.0; NDOF]; NDOF];
                 for i in 0..NDOF {
                     for j in 0..NDOF {
-                        comb[i][j] = c.ck * k[i][j] + c.cc * cmat[i][j] + c.cm * m[i][j];
+                        let cij = if rayleigh {
+                            o.c[i][j] + (ra * m[i][j] + rb * k[i][j])
+                        } else {
+                            o.c[i][j]
+                        };
+                        comb[i][j] = c.ck * k[i][j] + c.cc * cij + c.cm * m[i][j];
                     }
                 }
                 scatter_pair(s, model, &ch, &y, &comb, sk);

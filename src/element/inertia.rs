@@ -11,7 +11,7 @@
 //!
 //! The production route of [`super::CpuEval`]; its WGSL twin is `shaders/beam_inertia.wgsl`.
 
-use super::ad::{mvec, vadd, vsub, HyperDual, Real, M3, V3};
+use super::ad::{mvec, vadd, vsub, Dual, HyperDual, Jet2, Real, M3, V3};
 use super::force::*;
 use super::kinematics::*;
 use crate::math::{Mat3, Vec3};
@@ -46,6 +46,28 @@ pub(super) fn field_derivs(
     out
 }
 
+/// The position fields at the Gauss points as second-order jets along `v`: their `.dd`
+/// parts are H(v, v), bit-identical to the `.ab` parts of [`field_derivs`] along (v, v)
+/// (the same products in the same order, each once instead of twice).
+pub(super) fn field_jets(
+    e: &ElemData,
+    s: &ElemState,
+    t1: &Mat3,
+    t2: &Mat3,
+    v: &Vec12,
+) -> [[[Jet2; 3]; 3]; 4] {
+    let (u1, tt1) = perturb_jet(s.u1, t1, &v[0..6]);
+    let (u2, tt2) = perturb_jet(s.u2, t2, &v[6..12]);
+    let kin = kinematics(e.chord0, e.l0, u1, u2, &tt1, &tt2);
+    let c0 = e.chord0.map(Jet2::cst);
+    let chord = vadd(c0, vsub(u2, u1));
+    let mut out = [[[Jet2::default(); 3]; 3]; 4];
+    for (g, (xi, _)) in GAUSS4.iter().enumerate() {
+        out[g] = section_fields(&kin, u1, chord, *xi);
+    }
+    out
+}
+
 /// μ-weights of the three position fields per unit length: ρA for a, ρI_z for b
 /// (multiplies y), ρI_y for c (multiplies z).
 #[inline]
@@ -59,6 +81,12 @@ pub(super) fn field_weights(p: &BeamProps) -> [f64; 3] {
 /// did not. Exactly symmetric (the two triangles round differently, so one is copied).
 pub(super) fn mass_from_rows(rows: &[[f64; NDOF]; 36], wq: &[f64; 36]) -> Mat12 {
     let mut m = [[0.0; NDOF]; NDOF];
+    mass_into(rows, wq, &mut m);
+    m
+}
+
+/// [`mass_from_rows`] written over `m` (every entry).
+fn mass_into(rows: &[[f64; NDOF]; 36], wq: &[f64; 36], m: &mut Mat12) {
     for (j, mj) in m.iter_mut().enumerate() {
         let mut acc = [0.0; NDOF];
         for (r, wr) in rows.iter().zip(wq) {
@@ -74,7 +102,6 @@ pub(super) fn mass_from_rows(rows: &[[f64; NDOF]; 36], wq: &[f64; 36]) -> Mat12 
             m[k][j] = m[j][k];
         }
     }
-    m
 }
 
 /// Field gradients g at the Gauss points (all 12 dofs).
@@ -96,68 +123,92 @@ pub(super) fn project_ab(e: &ElemData, g: &FieldGrads, h: &[[[HyperDual; 3]; 3];
     })
 }
 
-/// Field gradients g (and, in the full evaluation, their time derivatives ġ along the
-/// nodal velocities) laid out as 36 rows (Gauss point, field, component) of 12 dofs,
-/// with the μ-weights of the rows: every inertia quantity is a sum over these rows.
-pub(super) struct GradRows {
+/// μ-weights of the 36 rows (Gauss point, field, component): Gauss weight × field
+/// weight × L0.
+#[inline]
+fn row_weights(e: &ElemData) -> [f64; 36] {
+    let wf = field_weights(&e.props);
+    std::array::from_fn(|q| GAUSS4[q / 9].1 * wf[(q / 3) % 3] * e.l0)
+}
+
+/// Field gradients g (and, in the full evaluation of a moving element, their time
+/// derivatives ġ along the nodal velocities) laid out as 36 rows (Gauss point, field,
+/// component) of 12 dofs, with the μ-weights of the rows: every inertia quantity is a
+/// sum over these rows. A stage keeps one per batch and overwrites it element by element
+/// (every entry it reads is written), so the hot path neither zeroes nor moves the rows.
+pub struct GradRows {
     g: [[f64; NDOF]; 36],
     gdot: [[f64; NDOF]; 36],
+    /// the dual-number rows (g + ε ġ) before they are split
+    dual: [[Dual; NDOF]; 36],
     w: [f64; 36],
     /// the node frames the rows were taken at
     frames: (Mat3, Mat3),
+    /// whether `gdot` holds the rates (else C = 0)
+    rates: bool,
+}
+
+impl Default for GradRows {
+    fn default() -> Self {
+        GradRows {
+            g: [[0.0; NDOF]; 36],
+            gdot: [[0.0; NDOF]; 36],
+            dual: [[Dual::default(); NDOF]; 36],
+            w: [0.0; 36],
+            frames: ([[0.0; 3]; 3], [[0.0; 3]; 3]),
+            rates: false,
+        }
+    }
 }
 
 impl GradRows {
-    /// Rows of g from the f64 gradients, or of g and ġ from one dual-number pass with the
-    /// nodes moving along `v` (`with_rates`; the value parts of that pass do exactly the
-    /// f64 arithmetic, so g is bit-identical either way).
-    fn new(e: &ElemData, s: &ElemState, v: &Vec12, with_rates: bool) -> Self {
-        let (t1, t2) = node_frames(e, s);
-        let wf = field_weights(&e.props);
-        let w = std::array::from_fn(|q| GAUSS4[q / 9].1 * wf[(q / 3) % 3] * e.l0);
-        if with_rates {
-            let (u1, tt1) = perturb_dual(s.u1, &t1, &v[0..6]);
-            let (u2, tt2) = perturb_dual(s.u2, &t2, &v[6..12]);
-            let gd = gradients_closed_generic(e, u1, u2, &tt1, &tt2);
-            GradRows {
-                g: gd.map(|r| r.map(|x| x.v)),
-                gdot: gd.map(|r| r.map(|x| x.d)),
-                w,
-                frames: (t1, t2),
-            }
-        } else {
-            GradRows {
-                g: gradients_closed_generic(e, s.u1, s.u2, &t1, &t2),
-                gdot: [[0.0; NDOF]; 36],
-                w,
-                frames: (t1, t2),
-            }
-        }
+    /// Overwrite with the rows of g from the element's f64 gradient at frames `frames`
+    /// (bit-identical to the value part of [`GradRows::fill_with_rates`]).
+    pub(super) fn fill_from(&mut self, e: &ElemData, g: &Grad<f64>, frames: (Mat3, Mat3)) {
+        field_rows_into(g, &mut self.g);
+        self.w = row_weights(e);
+        self.frames = frames;
+        self.rates = false;
     }
 
-    /// Rows of g (no rates) from the element's f64 gradient at frames `frames`:
-    /// bit-identical to `new(.., false)`, which computes the same gradient itself.
-    fn from_gradient(e: &ElemData, g: &Grad<f64>, frames: (Mat3, Mat3)) -> Self {
-        let wf = field_weights(&e.props);
-        GradRows {
-            g: field_rows(g),
-            gdot: [[0.0; NDOF]; 36],
-            w: std::array::from_fn(|q| GAUSS4[q / 9].1 * wf[(q / 3) % 3] * e.l0),
-            frames,
+    /// Overwrite with the rows of g at the element's node frames and, when the nodes move
+    /// along `v`, of ġ: one dual-number pass of the closed-form gradients, whose value
+    /// parts do exactly the f64 arithmetic, so g is bit-identical either way.
+    pub(super) fn fill_with_rates(&mut self, e: &ElemData, s: &ElemState, v: &Vec12) {
+        let (t1, t2) = node_frames(e, s);
+        if !v.iter().any(|x| *x != 0.0) {
+            self.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2), (t1, t2));
+            return;
         }
+        let (u1, tt1) = perturb_dual(s.u1, &t1, &v[0..6]);
+        let (u2, tt2) = perturb_dual(s.u2, &t2, &v[6..12]);
+        field_rows_into(
+            &gradient(e.chord0, e.l0, u1, u2, &tt1, &tt2),
+            &mut self.dual,
+        );
+        for ((g, gdot), d) in self.g.iter_mut().zip(self.gdot.iter_mut()).zip(&self.dual) {
+            for ((x, y), z) in g.iter_mut().zip(gdot.iter_mut()).zip(d) {
+                *x = z.v;
+                *y = z.d;
+            }
+        }
+        self.w = row_weights(e);
+        self.frames = (t1, t2);
+        self.rates = true;
     }
 
     /// S = ∫ μ gᵀ H(v, v), H the symmetric second derivative of the position field, from
-    /// one hyper-dual pass (cheaper than ġ when only S is wanted).
+    /// one second-order jet pass along v ([`field_jets`]; cheaper than ġ when only S is
+    /// wanted, and the same whichever way the rows were filled).
     fn quadratic(&self, e: &ElemData, s: &ElemState, v: &Vec12) -> Vec12 {
         let mut sv = [0.0; NDOF];
         if v.iter().all(|x| *x == 0.0) {
             return sv;
         }
         let (t1, t2) = &self.frames;
-        let h = field_derivs(e, s, t1, t2, v, v);
+        let h = field_jets(e, s, t1, t2, v);
         for (q, (row, wr)) in self.g.iter().zip(&self.w).enumerate() {
-            let a = wr * h[q / 9][(q / 3) % 3][q % 3].ab;
+            let a = wr * h[q / 9][(q / 3) % 3][q % 3].dd;
             for (x, y) in sv.iter_mut().zip(row) {
                 *x += a * y;
             }
@@ -201,7 +252,7 @@ pub struct Inertia {
     pub forces: InertiaForces,
 }
 
-pub(super) fn forces_from_rows(
+fn forces_from_rows(
     r: &GradRows,
     e: &ElemData,
     s: &ElemState,
@@ -232,11 +283,27 @@ pub(super) fn forces_from_rows(
 /// the closed-form gradients gives g and ġ. Checked against one hyper-dual pass per column
 /// ([`inertia_columns`]) and against finite differences of S.
 pub fn inertia_full(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> Inertia {
-    let moving = v.iter().any(|x| *x != 0.0);
-    let r = GradRows::new(e, s, v, moving);
-    let m = mass_from_rows(&r.g, &r.w);
-    let mut c = [[0.0; NDOF]; NDOF];
-    if moving {
+    let mut r = GradRows::default();
+    let (mut m, mut c) = ([[0.0; NDOF]; NDOF], [[0.0; NDOF]; NDOF]);
+    r.fill_with_rates(e, s, v);
+    let forces = inertia_from_rows(&r, e, s, v, acc, &mut m, &mut c);
+    Inertia { m, c, forces }
+}
+
+/// [`inertia_full`] from rows filled by [`GradRows::fill_with_rates`] at the element's
+/// state and `v`, M and C written over `m` and `c`: what the stage calls, so the
+/// matrices go straight to its output.
+pub(super) fn inertia_from_rows(
+    r: &GradRows,
+    e: &ElemData,
+    s: &ElemState,
+    v: &Vec12,
+    acc: &Vec12,
+    m: &mut Mat12,
+    c: &mut Mat12,
+) -> InertiaForces {
+    mass_into(&r.g, &r.w, m);
+    if r.rates {
         for (j, cj) in c.iter_mut().enumerate() {
             let mut acc_c = [0.0; NDOF];
             for ((row, rowd), wr) in r.g.iter().zip(&r.gdot).zip(&r.w) {
@@ -256,12 +323,10 @@ pub fn inertia_full(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> Iner
                 }
             }
         }
+    } else {
+        *c = [[0.0; NDOF]; NDOF];
     }
-    Inertia {
-        m,
-        c,
-        forces: forces_from_rows(&r, e, s, v, acc),
-    }
+    forces_from_rows(r, e, s, v, acc)
 }
 
 /// M, S and C of [`inertia_full`].
@@ -275,11 +340,15 @@ pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) 
 /// bit-identical to [`inertia_full`]'s, and M is never formed (a product with M costs
 /// 2 × 36 × 12 multiply-adds, forming it 36 × 144).
 pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> InertiaForces {
-    forces_from_rows(&GradRows::new(e, s, v, false), e, s, v, acc)
+    let (t1, t2) = node_frames(e, s);
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let mut r = GradRows::default();
+    inertia_residual_from(e, s, &g, (t1, t2), v, acc, &mut r)
 }
 
 /// [`inertia_residual`] from the element's f64 gradient at its node frames (as
-/// [`super::force::residual_parts`] returns them): bit-identical, one gradient fewer.
+/// [`super::force::residual_parts`] returns them), the rows written into `rows`:
+/// bit-identical, one gradient fewer.
 pub(super) fn inertia_residual_from(
     e: &ElemData,
     s: &ElemState,
@@ -287,8 +356,10 @@ pub(super) fn inertia_residual_from(
     frames: (Mat3, Mat3),
     v: &Vec12,
     acc: &Vec12,
+    rows: &mut GradRows,
 ) -> InertiaForces {
-    forces_from_rows(&GradRows::from_gradient(e, g, frames), e, s, v, acc)
+    rows.fill_from(e, g, frames);
+    forces_from_rows(rows, e, s, v, acc)
 }
 
 /// g_j = ∂(a, b, c)/∂q_j at the Gauss points, in closed form from [`gradient`], as 36 rows
@@ -313,12 +384,19 @@ pub fn gradients_closed_generic<R: Real>(
 /// that has it for the force does not compute it twice).
 #[inline]
 pub(super) fn field_rows<R: Real>(g: &Grad<R>) -> [[R; NDOF]; 36] {
+    let mut out = [[R::cst(0.0); NDOF]; 36];
+    field_rows_into(g, &mut out);
+    out
+}
+
+/// [`field_rows`] written over `out` (every entry; no zeroing needed).
+#[inline]
+pub(super) fn field_rows_into<R: Real>(g: &Grad<R>, out: &mut [[R; NDOF]; 36]) {
     let k = &g.kin;
     let tc = &k.tc;
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
     let len = k.len;
     let z = R::cst(0.0);
-    let mut out = [[z; NDOF]; 36];
     for (gp, (xi, _)) in GAUSS4.iter().enumerate() {
         let xi = *xi;
         let n1 = R::cst(xi - 2.0 * xi * xi + xi * xi * xi);
@@ -370,7 +448,6 @@ pub(super) fn field_rows<R: Real>(g: &Grad<R>) -> [[R; NDOF]; 36] {
             out[9 * gp + c][6 + c] = out[9 * gp + c][6 + c] + c1;
         }
     }
-    out
 }
 
 /// [`gradients_closed_generic`] in f64, laid out by dof (for the reference routes).
@@ -385,6 +462,8 @@ pub(super) fn gradients_closed(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3
 
 /// Consistent, configuration-dependent mass matrix M = ∫ μ gᵀ g dΩ (paper eq. 19).
 pub fn mass_matrix(e: &ElemData, s: &ElemState) -> Mat12 {
-    let r = GradRows::new(e, s, &[0.0; NDOF], false);
+    let (t1, t2) = node_frames(e, s);
+    let mut r = GradRows::default();
+    r.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2), (t1, t2));
     mass_from_rows(&r.g, &r.w)
 }

@@ -18,7 +18,9 @@
 //! This file: element data and state, the convected-frame kinematics, strain energy,
 //! section forces and gravity energy, shared by the force and inertia routes.
 
-use super::ad::{mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, HyperDual, Real, M3, V3};
+use super::ad::{
+    mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, HyperDual, Jet2, Real, M3, V3,
+};
 use super::inertia::*;
 use crate::math::{Mat3, Vec3};
 use crate::model::BeamProps;
@@ -278,6 +280,25 @@ pub(super) fn perturb(x: Vec3, t: &Mat3, da: &[f64], db: &[f64]) -> (V3<HyperDua
         let ba = crate::math::cross(wb, a);
         for i in 0..3 {
             tp[i][j] = HyperDual::new(tj[i], a[i], b[i], 0.5 * (ab[i] + ba[i]));
+        }
+    }
+    (xp, tp)
+}
+
+/// Node position and frame perturbed along one element-dof direction `d` to second order
+/// in [`Jet2`] numbers: bit-identical to [`perturb`] along (d, d), whose mixed part
+/// ½(w × (w × t) + w × (w × t)) is w × (w × t) exactly.
+#[inline]
+pub(super) fn perturb_jet(x: Vec3, t: &Mat3, d: &[f64]) -> (V3<Jet2>, M3<Jet2>) {
+    let xp = [0, 1, 2].map(|i| Jet2::new(x[i], d[i], 0.0));
+    let w = [d[3], d[4], d[5]];
+    let mut tp = [[Jet2::default(); 3]; 3];
+    for j in 0..3 {
+        let tj = crate::math::col(t, j);
+        let a = crate::math::cross(w, tj);
+        let aa = crate::math::cross(w, a);
+        for i in 0..3 {
+            tp[i][j] = Jet2::new(tj[i], a[i], aa[i]);
         }
     }
     (xp, tp)

@@ -188,10 +188,10 @@ impl AdapterSummary {
     }
 }
 
-fn instance() -> wgpu::Instance {
+fn instance(backends: wgpu::Backends) -> wgpu::Instance {
     quiet_device_select();
     wgpu::Instance::new(wgpu::InstanceDescriptor {
-        backends: wgpu::Backends::VULKAN | wgpu::Backends::GL,
+        backends,
         ..wgpu::InstanceDescriptor::new_without_display_handle()
     })
 }
@@ -216,9 +216,14 @@ fn quiet_device_select() {
 /// Every adapter wgpu finds (Vulkan and OpenGL ES backends). Never panics: a machine
 /// without drivers simply has none.
 pub fn adapters() -> Vec<(wgpu::Adapter, AdapterSummary)> {
+    adapters_on(wgpu::Backends::VULKAN | wgpu::Backends::GL)
+}
+
+/// The adapters of `backends` only.
+fn adapters_on(backends: wgpu::Backends) -> Vec<(wgpu::Adapter, AdapterSummary)> {
     let found = std::panic::catch_unwind(|| {
-        let inst = instance();
-        pollster::block_on(inst.enumerate_adapters(wgpu::Backends::VULKAN | wgpu::Backends::GL))
+        let inst = instance(backends);
+        pollster::block_on(inst.enumerate_adapters(backends))
     })
     .unwrap_or_default();
     found
@@ -256,7 +261,13 @@ pub fn select(
     allow_software: bool,
 ) -> Result<(wgpu::Adapter, AdapterSummary), GpuError> {
     let filter = std::env::var("LATDYN_ADAPTER").ok();
-    let mut all: Vec<_> = adapters()
+    // OpenGL ES has no f64 shaders: an f64 search does not start its drivers (on a
+    // machine without a GPU that start-up is most of the ~0.1 s `--backend auto` costs)
+    let backends = match precision {
+        Precision::F64 => wgpu::Backends::VULKAN,
+        Precision::F32 => wgpu::Backends::VULKAN | wgpu::Backends::GL,
+    };
+    let mut all: Vec<_> = adapters_on(backends)
         .into_iter()
         .filter(|(_, s)| allow_software || !s.is_software())
         .filter(|(_, s)| {

@@ -228,8 +228,9 @@ impl NewtonSystem {
     ) -> Result<AssemblyInfo, LinalgError> {
         let t0 = Instant::now();
         let before = asm.stage_times();
-        self.values.iter_mut().for_each(|v| *v = 0.0);
         let info = if factor {
+            // (a residual-only evaluation leaves the last factored values alone)
+            self.values.iter_mut().for_each(|v| *v = 0.0);
             let mut sink = SparseSink {
                 pattern: &self.pattern,
                 values: &mut self.values,
