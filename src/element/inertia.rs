@@ -139,8 +139,6 @@ fn row_weights(e: &ElemData) -> [f64; 36] {
 pub struct GradRows {
     g: [[f64; NDOF]; 36],
     gdot: [[f64; NDOF]; 36],
-    /// the dual-number rows (g + ε ġ) before they are split
-    dual: [[Dual; NDOF]; 36],
     w: [f64; 36],
     /// the node frames the rows were taken at
     frames: (Mat3, Mat3),
@@ -153,7 +151,6 @@ impl Default for GradRows {
         GradRows {
             g: [[0.0; NDOF]; 36],
             gdot: [[0.0; NDOF]; 36],
-            dual: [[Dual::default(); NDOF]; 36],
             w: [0.0; 36],
             frames: ([[0.0; 3]; 3], [[0.0; 3]; 3]),
             rates: false,
@@ -182,16 +179,11 @@ impl GradRows {
         }
         let (u1, tt1) = perturb_dual(s.u1, &t1, &v[0..6]);
         let (u2, tt2) = perturb_dual(s.u2, &t2, &v[6..12]);
-        field_rows_into(
-            &gradient(e.chord0, e.l0, u1, u2, &tt1, &tt2),
-            &mut self.dual,
-        );
-        for ((g, gdot), d) in self.g.iter_mut().zip(self.gdot.iter_mut()).zip(&self.dual) {
-            for ((x, y), z) in g.iter_mut().zip(gdot.iter_mut()).zip(d) {
-                *x = z.v;
-                *y = z.d;
-            }
-        }
+        let mut split = SplitRows {
+            g: &mut self.g,
+            gdot: &mut self.gdot,
+        };
+        field_rows_into(&gradient(e.chord0, e.l0, u1, u2, &tt1, &tt2), &mut split);
         self.w = row_weights(e);
         self.frames = (t1, t2);
         self.rates = true;
@@ -389,9 +381,48 @@ pub(super) fn field_rows<R: Real>(g: &Grad<R>) -> [[R; NDOF]; 36] {
     out
 }
 
+/// Where [`field_rows_into`] writes its rows: an array of `R`, or for dual numbers
+/// ([`SplitRows`]) their value and derivative parts into two f64 arrays.
+pub(super) trait RowSink<R> {
+    fn set(&mut self, q: usize, j: usize, x: R);
+    /// add a constant (the chord's share) to an entry already set
+    fn add_cst(&mut self, q: usize, j: usize, c: f64);
+}
+
+impl<R: Real> RowSink<R> for [[R; NDOF]; 36] {
+    #[inline(always)]
+    fn set(&mut self, q: usize, j: usize, x: R) {
+        self[q][j] = x;
+    }
+    #[inline(always)]
+    fn add_cst(&mut self, q: usize, j: usize, c: f64) {
+        self[q][j] = self[q][j] + R::cst(c);
+    }
+}
+
+/// Dual-number rows g + ε ġ written straight into g and ġ (the same additions a [`Dual`]
+/// does, so both are bit-identical to splitting a dual array afterwards).
+pub(super) struct SplitRows<'a> {
+    g: &'a mut [[f64; NDOF]; 36],
+    gdot: &'a mut [[f64; NDOF]; 36],
+}
+
+impl RowSink<Dual> for SplitRows<'_> {
+    #[inline(always)]
+    fn set(&mut self, q: usize, j: usize, x: Dual) {
+        self.g[q][j] = x.v;
+        self.gdot[q][j] = x.d;
+    }
+    #[inline(always)]
+    fn add_cst(&mut self, q: usize, j: usize, c: f64) {
+        self.g[q][j] += c;
+        self.gdot[q][j] += 0.0;
+    }
+}
+
 /// [`field_rows`] written over `out` (every entry; no zeroing needed).
 #[inline]
-pub(super) fn field_rows_into<R: Real>(g: &Grad<R>, out: &mut [[R; NDOF]; 36]) {
+pub(super) fn field_rows_into<R: Real, S: RowSink<R>>(g: &Grad<R>, out: &mut S) {
     let k = &g.kin;
     let tc = &k.tc;
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
@@ -435,17 +466,29 @@ pub(super) fn field_rows_into<R: Real>(g: &Grad<R>, out: &mut [[R; NDOF]; 36]) {
             let t = tc[c];
             let base = 9 * gp + c;
             for j in 0..NDOF {
-                out[base][j] = (dth[p][j] * ra[q] - dth[q][j] * ra[p])
-                    + (t[0] * z + t[1] * duy[j] + t[2] * duz[j]);
-                out[base + 3][j] = (dth[p][j] * rb[q] - dth[q][j] * rb[p])
-                    + (t[0] * (-dthz[j]) + t[1] * z + t[2] * dthx[j]);
-                out[base + 6][j] = (dth[p][j] * rc[q] - dth[q][j] * rc[p])
-                    + (t[0] * dthy[j] + t[1] * (-dthx[j]) + t[2] * z);
+                out.set(
+                    base,
+                    j,
+                    (dth[p][j] * ra[q] - dth[q][j] * ra[p])
+                        + (t[0] * z + t[1] * duy[j] + t[2] * duz[j]),
+                );
+                out.set(
+                    base + 3,
+                    j,
+                    (dth[p][j] * rb[q] - dth[q][j] * rb[p])
+                        + (t[0] * (-dthz[j]) + t[1] * z + t[2] * dthx[j]),
+                );
+                out.set(
+                    base + 6,
+                    j,
+                    (dth[p][j] * rc[q] - dth[q][j] * rc[p])
+                        + (t[0] * dthy[j] + t[1] * (-dthx[j]) + t[2] * z),
+                );
             }
         }
         for c in 0..3 {
-            out[9 * gp + c][c] = out[9 * gp + c][c] + c0;
-            out[9 * gp + c][6 + c] = out[9 * gp + c][6 + c] + c1;
+            out.add_cst(9 * gp + c, c, 1.0 - xi);
+            out.add_cst(9 * gp + c, 6 + c, xi);
         }
     }
 }
