@@ -212,23 +212,23 @@ pub type V3<R> = [R; 3];
 /// row-major 3x3; columns are frame axes
 pub type M3<R> = [[R; 3]; 3];
 
-#[inline]
+#[inline(always)]
 pub fn vadd<R: Real>(a: V3<R>, b: V3<R>) -> V3<R> {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
-#[inline]
+#[inline(always)]
 pub fn vsub<R: Real>(a: V3<R>, b: V3<R>) -> V3<R> {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
-#[inline]
+#[inline(always)]
 pub fn vscale<R: Real>(a: V3<R>, s: R) -> V3<R> {
     [a[0] * s, a[1] * s, a[2] * s]
 }
-#[inline]
+#[inline(always)]
 pub fn vdot<R: Real>(a: V3<R>, b: V3<R>) -> R {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
-#[inline]
+#[inline(always)]
 pub fn vcross<R: Real>(a: V3<R>, b: V3<R>) -> V3<R> {
     [
         a[1] * b[2] - a[2] * b[1],
@@ -236,11 +236,11 @@ pub fn vcross<R: Real>(a: V3<R>, b: V3<R>) -> V3<R> {
         a[0] * b[1] - a[1] * b[0],
     ]
 }
-#[inline]
+#[inline(always)]
 pub fn mcol<R: Real>(m: &M3<R>, j: usize) -> V3<R> {
     [m[0][j], m[1][j], m[2][j]]
 }
-#[inline]
+#[inline(always)]
 pub fn mvec<R: Real>(m: &M3<R>, v: V3<R>) -> V3<R> {
     [
         m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],

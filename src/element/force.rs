@@ -201,12 +201,22 @@ pub(super) fn residual_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad
 /// [`internal_force_tangent`] and the strain energy (bit-identical to [`strain_energy`],
 /// from the same kinematics instead of computing them again).
 pub fn internal_force_tangent_energy(e: &ElemData, s: &ElemState) -> (Vec12, Mat12, f64) {
+    let (_, _, f, k, u) = tangent_parts(e, s);
+    (f, k, u)
+}
+
+/// The full evaluation's shared pieces: [`residual_parts`] and the tangent K.
+pub(super) fn tangent_parts(
+    e: &ElemData,
+    s: &ElemState,
+) -> ((Mat3, Mat3), Grad<f64>, Vec12, Mat12, f64) {
     let (t1, t2) = node_frames(e, s);
     let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
     let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
     let f = force_from(&g, &m, n);
     let k = tangent(&e.props, e.l0, &g, &m, n);
-    (f, k, energy(&e.props, e.l0, &g.kin))
+    let u = energy(&e.props, e.l0, &g.kin);
+    ((t1, t2), g, f, k, u)
 }
 
 /// K += a bᵀ over the rows `rows` (a indexed by row, b by column).

@@ -14,7 +14,7 @@
 use super::ad::{mvec, vadd, vsub, Dual, HyperDual, Jet2, Real, M3, V3};
 use super::force::*;
 use super::kinematics::*;
-use crate::math::{Mat3, Vec3};
+use crate::math::{cross, Mat3, Vec3};
 use crate::model::BeamProps;
 
 /// 4-point Gauss-Legendre on [0, 1]
@@ -140,8 +140,6 @@ pub struct GradRows {
     g: [[f64; NDOF]; 36],
     gdot: [[f64; NDOF]; 36],
     w: [f64; 36],
-    /// the node frames the rows were taken at
-    frames: (Mat3, Mat3),
     /// whether `gdot` holds the rates (else C = 0)
     rates: bool,
 }
@@ -152,19 +150,17 @@ impl Default for GradRows {
             g: [[0.0; NDOF]; 36],
             gdot: [[0.0; NDOF]; 36],
             w: [0.0; 36],
-            frames: ([[0.0; 3]; 3], [[0.0; 3]; 3]),
             rates: false,
         }
     }
 }
 
 impl GradRows {
-    /// Overwrite with the rows of g from the element's f64 gradient at frames `frames`
+    /// Overwrite with the rows of g from the element's f64 gradient
     /// (bit-identical to the value part of [`GradRows::fill_with_rates`]).
-    pub(super) fn fill_from(&mut self, e: &ElemData, g: &Grad<f64>, frames: (Mat3, Mat3)) {
+    pub(super) fn fill_from(&mut self, e: &ElemData, g: &Grad<f64>) {
         field_rows_into(g, &mut self.g);
         self.w = row_weights(e);
-        self.frames = frames;
         self.rates = false;
     }
 
@@ -174,7 +170,7 @@ impl GradRows {
     pub(super) fn fill_with_rates(&mut self, e: &ElemData, s: &ElemState, v: &Vec12) {
         let (t1, t2) = node_frames(e, s);
         if !v.iter().any(|x| *x != 0.0) {
-            self.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2), (t1, t2));
+            self.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2));
             return;
         }
         let (u1, tt1) = perturb_dual(s.u1, &t1, &v[0..6]);
@@ -185,45 +181,188 @@ impl GradRows {
         };
         field_rows_into(&gradient(e.chord0, e.l0, u1, u2, &tt1, &tt2), &mut split);
         self.w = row_weights(e);
-        self.frames = (t1, t2);
         self.rates = true;
     }
+}
 
-    /// S = ∫ μ gᵀ H(v, v), H the symmetric second derivative of the position field, from
-    /// one second-order jet pass along v ([`field_jets`]; cheaper than ġ when only S is
-    /// wanted, and the same whichever way the rows were filled).
-    fn quadratic(&self, e: &ElemData, s: &ElemState, v: &Vec12) -> Vec12 {
-        let mut sv = [0.0; NDOF];
-        if v.iter().all(|x| *x == 0.0) {
-            return sv;
+/// The position fields' gradients g_q (q = Gauss point, field) in factored form: the
+/// element's [`Grad`] and, per Gauss point, the field offsets the frame spin turns.
+/// Products g·x and gᵀy then cost a few dot products of length 12 instead of forming the
+/// 36 × 12 rows ([`field_rows`]): g_q x = δθ × r_q + T_C δ(local field) + chord share,
+/// with δθ = ∂θ_C x, δφ = ∂φ x, δℓ = ∂ℓ x, and gᵀy gathers, over the Gauss points,
+/// Σ r × y against ∂θ_C, the local components T_Cᵀ y against ∂φ and ∂ℓ, and the chord
+/// shares against the node translations.
+pub(super) struct FieldMaps<'g> {
+    g: &'g Grad<f64>,
+    /// ra, rb, rc per Gauss point (spatial)
+    r: [[Vec3; 3]; 4],
+    /// wz, wy per Gauss point (the bending shapes' values)
+    w: [[f64; 2]; 4],
+}
+
+/// Shape-function values at Gauss point ξ: n1, n2 (Hermite, bending), d1, d2 (their
+/// derivatives), c0, c1 (linear, twist and chord).
+#[inline(always)]
+fn shapes(xi: f64) -> [f64; 6] {
+    [
+        xi - 2.0 * xi * xi + xi * xi * xi,
+        -xi * xi + xi * xi * xi,
+        1.0 - 4.0 * xi + 3.0 * xi * xi,
+        -2.0 * xi + 3.0 * xi * xi,
+        1.0 - xi,
+        xi,
+    ]
+}
+
+impl<'g> FieldMaps<'g> {
+    pub(super) fn new(g: &'g Grad<f64>) -> Self {
+        let k = &g.kin;
+        let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
+        let mut r = [[[0.0; 3]; 3]; 4];
+        let mut w = [[0.0; 2]; 4];
+        for (gp, (xi, _)) in GAUSS4.iter().enumerate() {
+            let [n1, n2, d1, d2, c0, c1] = shapes(*xi);
+            let wz = n1 * fz1 + n2 * fz2;
+            let wy = n1 * fy1 + n2 * fy2;
+            let thx = c0 * fx1 + c1 * fx2;
+            let thy = d1 * fy1 + d2 * fy2;
+            let thz = d1 * fz1 + d2 * fz2;
+            r[gp] = [
+                mvec(&k.tc, [0.0, k.len * wz, -(k.len * wy)]),
+                mvec(&k.tc, [-thz, 1.0, thx]),
+                mvec(&k.tc, [thy, -thx, 1.0]),
+            ];
+            w[gp] = [wz, wy];
         }
-        let (t1, t2) = &self.frames;
-        let h = field_jets(e, s, t1, t2, v);
-        for (q, (row, wr)) in self.g.iter().zip(&self.w).enumerate() {
-            let a = wr * h[q / 9][(q / 3) % 3][q % 3].dd;
-            for (x, y) in sv.iter_mut().zip(row) {
-                *x += a * y;
-            }
-        }
-        sv
+        FieldMaps { g, r, w }
     }
 
-    /// (M x, M y) = Σ_q w_q g_q (g_q · x), likewise y: products with M without forming it.
-    fn mass_times(&self, x: &Vec12, y: &Vec12) -> (Vec12, Vec12) {
-        let (mut mx, mut my) = ([0.0; NDOF], [0.0; NDOF]);
-        for (row, wr) in self.g.iter().zip(&self.w) {
-            let (mut gx, mut gy) = (0.0, 0.0);
-            for ((r, xa), ya) in row.iter().zip(x).zip(y) {
-                gx += r * xa;
-                gy += r * ya;
+    /// g_q · x for every (Gauss point, field) q.
+    fn apply(&self, x: &Vec12) -> [[Vec3; 3]; 4] {
+        let g = self.g;
+        let dot = |row: &[f64; NDOF]| row.iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
+        let th = [dot(&g.dtheta[0]), dot(&g.dtheta[1]), dot(&g.dtheta[2])];
+        let ph: [f64; 6] = std::array::from_fn(|k| dot(&g.dphi[k]));
+        let l = dot(&g.dlen);
+        let (x1, x2) = ([x[0], x[1], x[2]], [x[6], x[7], x[8]]);
+        let tc = &g.kin.tc;
+        let len = g.kin.len;
+        std::array::from_fn(|gp| {
+            let [n1, n2, d1, d2, c0, c1] = shapes(GAUSS4[gp].0);
+            let [wz, wy] = self.w[gp];
+            let duy = l * wz + len * (n1 * ph[2] + n2 * ph[5]);
+            let duz = -(l * wy + len * (n1 * ph[1] + n2 * ph[4]));
+            let dthx = c0 * ph[0] + c1 * ph[3];
+            let dthy = d1 * ph[1] + d2 * ph[4];
+            let dthz = d1 * ph[2] + d2 * ph[5];
+            let [ra, rb, rc] = &self.r[gp];
+            let la = mvec(tc, [0.0, duy, duz]);
+            let lb = mvec(tc, [-dthz, 0.0, dthx]);
+            let lc = mvec(tc, [dthy, -dthx, 0.0]);
+            let (ca, cb, cc) = (cross(th, *ra), cross(th, *rb), cross(th, *rc));
+            [
+                std::array::from_fn(|i| ca[i] + la[i] + (c0 * x1[i] + c1 * x2[i])),
+                std::array::from_fn(|i| cb[i] + lb[i]),
+                std::array::from_fn(|i| cc[i] + lc[i]),
+            ]
+        })
+    }
+
+    /// Σ_q g_qj · y_q for every dof j.
+    fn project(&self, y: &[[Vec3; 3]; 4]) -> Vec12 {
+        let g = self.g;
+        let tc = &g.kin.tc;
+        let len = g.kin.len;
+        let mut mth = [0.0; 3];
+        let mut cph = [0.0; 6];
+        let mut cl = 0.0;
+        let (mut f1, mut f2) = ([0.0; 3], [0.0; 3]);
+        for gp in 0..4 {
+            let [n1, n2, d1, d2, c0, c1] = shapes(GAUSS4[gp].0);
+            let [wz, wy] = self.w[gp];
+            let [ya, yb, yc] = &y[gp];
+            let [ra, rb, rc] = &self.r[gp];
+            let (ma, mb, mc) = (cross(*ra, *ya), cross(*rb, *yb), cross(*rc, *yc));
+            for i in 0..3 {
+                mth[i] += ma[i] + mb[i] + mc[i];
+                f1[i] += c0 * ya[i];
+                f2[i] += c1 * ya[i];
             }
-            let (a, b) = (wr * gx, wr * gy);
-            for ((p, q), r) in mx.iter_mut().zip(my.iter_mut()).zip(row) {
-                *p += a * r;
-                *q += b * r;
+            // local components T_Cᵀ y
+            let tt = |v: &Vec3| -> Vec3 {
+                std::array::from_fn(|c| tc[0][c] * v[0] + tc[1][c] * v[1] + tc[2][c] * v[2])
+            };
+            let (za, zb, zc) = (tt(ya), tt(yb), tt(yc));
+            // field a: duy za1 + duz za2
+            cl += za[1] * wz - za[2] * wy;
+            cph[2] += za[1] * len * n1;
+            cph[5] += za[1] * len * n2;
+            cph[1] -= za[2] * len * n1;
+            cph[4] -= za[2] * len * n2;
+            // field b: −dthz zb0 + dthx zb2; field c: dthy zc0 − dthx zc1
+            cph[2] -= zb[0] * d1;
+            cph[5] -= zb[0] * d2;
+            cph[1] += zc[0] * d1;
+            cph[4] += zc[0] * d2;
+            cph[0] += (zb[2] - zc[1]) * c0;
+            cph[3] += (zb[2] - zc[1]) * c1;
+        }
+        let mut out: Vec12 = std::array::from_fn(|j| {
+            mth[0] * g.dtheta[0][j]
+                + mth[1] * g.dtheta[1][j]
+                + mth[2] * g.dtheta[2][j]
+                + (0..6).map(|k| cph[k] * g.dphi[k][j]).sum::<f64>()
+                + cl * g.dlen[j]
+        });
+        for i in 0..3 {
+            out[i] += f1[i];
+            out[6 + i] += f2[i];
+        }
+        out
+    }
+}
+
+/// The inertial forces from the factored gradients: M x = gᵀ(w ⊙ g x) for x = acc and v,
+/// S = gᵀ(w ⊙ H(v, v)) with H from one second-order jet pass ([`field_jets`]), the
+/// node frames `frames` those of the gradient. The full and the residual-only evaluation
+/// both call this with the same f64 gradient, so their forces are bit-identical.
+pub(super) fn inertia_forces(
+    e: &ElemData,
+    s: &ElemState,
+    g: &Grad<f64>,
+    frames: &(Mat3, Mat3),
+    v: &Vec12,
+    acc: &Vec12,
+) -> InertiaForces {
+    let maps = FieldMaps::new(g);
+    let wf = field_weights(&e.props);
+    let weigh = |mut y: [[Vec3; 3]; 4]| {
+        for (gp, yg) in y.iter_mut().enumerate() {
+            for (f, yf) in yg.iter_mut().enumerate() {
+                let w = GAUSS4[gp].1 * wf[f] * e.l0;
+                yf.iter_mut().for_each(|x| *x *= w);
             }
         }
-        (mx, my)
+        y
+    };
+    let ma = maps.project(&weigh(maps.apply(acc)));
+    let moving = v.iter().any(|x| *x != 0.0);
+    let (mv, sv) = if moving {
+        let h = field_jets(e, s, &frames.0, &frames.1, v);
+        let hv: [[Vec3; 3]; 4] = std::array::from_fn(|gp| {
+            std::array::from_fn(|f| std::array::from_fn(|c| h[gp][f][c].dd))
+        });
+        (
+            maps.project(&weigh(maps.apply(v))),
+            maps.project(&weigh(hv)),
+        )
+    } else {
+        ([0.0; NDOF], [0.0; NDOF])
+    };
+    InertiaForces {
+        finert: std::array::from_fn(|i| ma[i] + sv[i]),
+        mv,
+        s: sv,
     }
 }
 
@@ -244,22 +383,6 @@ pub struct Inertia {
     pub forces: InertiaForces,
 }
 
-fn forces_from_rows(
-    r: &GradRows,
-    e: &ElemData,
-    s: &ElemState,
-    v: &Vec12,
-    acc: &Vec12,
-) -> InertiaForces {
-    let sv = r.quadratic(e, s, v);
-    let (ma, mv) = r.mass_times(acc, v);
-    InertiaForces {
-        finert: std::array::from_fn(|i| ma[i] + sv[i]),
-        mv,
-        s: sv,
-    }
-}
-
 /// Inertia terms at nodal velocities `v` = (ẋ1, ω1, ẋ2, ω2) (spatial angular velocities)
 /// and accelerations `acc` = (ẍ1, α1, ẍ2, α2): the mass matrix M = ∫ μ gᵀ g, the
 /// quadratic-velocity vector S = ∫ μ gᵀ ġ q̇ dΩ (paper eq. 19), its velocity derivative
@@ -278,22 +401,18 @@ pub fn inertia_full(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> Iner
     let mut r = GradRows::default();
     let (mut m, mut c) = ([[0.0; NDOF]; NDOF], [[0.0; NDOF]; NDOF]);
     r.fill_with_rates(e, s, v);
-    let forces = inertia_from_rows(&r, e, s, v, acc, &mut m, &mut c);
-    Inertia { m, c, forces }
+    mass_and_rates(&r, v, &mut m, &mut c);
+    Inertia {
+        m,
+        c,
+        forces: inertia_residual(e, s, v, acc),
+    }
 }
 
-/// [`inertia_full`] from rows filled by [`GradRows::fill_with_rates`] at the element's
-/// state and `v`, M and C written over `m` and `c`: what the stage calls, so the
+/// M and C of [`inertia_full`] from rows filled by [`GradRows::fill_with_rates`] at the
+/// element's state and `v`, written over `m` and `c`: what the stage calls, so the
 /// matrices go straight to its output.
-pub(super) fn inertia_from_rows(
-    r: &GradRows,
-    e: &ElemData,
-    s: &ElemState,
-    v: &Vec12,
-    acc: &Vec12,
-    m: &mut Mat12,
-    c: &mut Mat12,
-) -> InertiaForces {
+pub(super) fn mass_and_rates(r: &GradRows, v: &Vec12, m: &mut Mat12, c: &mut Mat12) {
     mass_into(&r.g, &r.w, m);
     if r.rates {
         for (j, cj) in c.iter_mut().enumerate() {
@@ -318,7 +437,6 @@ pub(super) fn inertia_from_rows(
     } else {
         *c = [[0.0; NDOF]; NDOF];
     }
-    forces_from_rows(r, e, s, v, acc)
 }
 
 /// M, S and C of [`inertia_full`].
@@ -328,30 +446,12 @@ pub fn inertia(e: &ElemData, s: &ElemState, v: &Vec12) -> (Mat12, Vec12, Mat12) 
 }
 
 /// The inertial forces of [`inertia_full`] without M and C (for residual-only Newton
-/// iterations): from the f64 gradients and the same arithmetic as there, so they are
-/// bit-identical to [`inertia_full`]'s, and M is never formed (a product with M costs
-/// 2 × 36 × 12 multiply-adds, forming it 36 × 144).
+/// iterations): [`inertia_forces`] from the f64 gradient, as both stage evaluations
+/// compute them (bit-identical), and M is never formed.
 pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> InertiaForces {
     let (t1, t2) = node_frames(e, s);
     let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
-    let mut r = GradRows::default();
-    inertia_residual_from(e, s, &g, (t1, t2), v, acc, &mut r)
-}
-
-/// [`inertia_residual`] from the element's f64 gradient at its node frames (as
-/// [`super::force::residual_parts`] returns them), the rows written into `rows`:
-/// bit-identical, one gradient fewer.
-pub(super) fn inertia_residual_from(
-    e: &ElemData,
-    s: &ElemState,
-    g: &Grad<f64>,
-    frames: (Mat3, Mat3),
-    v: &Vec12,
-    acc: &Vec12,
-    rows: &mut GradRows,
-) -> InertiaForces {
-    rows.fill_from(e, g, frames);
-    forces_from_rows(rows, e, s, v, acc)
+    inertia_forces(e, s, &g, &(t1, t2), v, acc)
 }
 
 /// g_j = ∂(a, b, c)/∂q_j at the Gauss points, in closed form from [`gradient`], as 36 rows
@@ -507,6 +607,6 @@ pub(super) fn gradients_closed(e: &ElemData, s: &ElemState, t1: &Mat3, t2: &Mat3
 pub fn mass_matrix(e: &ElemData, s: &ElemState) -> Mat12 {
     let (t1, t2) = node_frames(e, s);
     let mut r = GradRows::default();
-    r.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2), (t1, t2));
+    r.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2));
     mass_from_rows(&r.g, &r.w)
 }

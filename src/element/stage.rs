@@ -158,13 +158,15 @@ impl CpuEval {
         o: &mut ElemOut,
         sc: &mut inertia::GradRows,
     ) {
-        let (f, k, u) = force::internal_force_tangent_energy(e, &i.state);
+        // one f64 gradient for the force, the tangent, the energy and the inertial forces
+        let (frames, g, f, k, u) = force::tangent_parts(e, &i.state);
         o.f = f;
         o.k = k;
         o.energy = u;
         if inertia {
             sc.fill_with_rates(e, &i.state, &i.v12);
-            let r = inertia::inertia_from_rows(sc, e, &i.state, &i.v12, &i.acc, &mut o.m, &mut o.c);
+            inertia::mass_and_rates(sc, &i.v12, &mut o.m, &mut o.c);
+            let r = inertia::inertia_forces(e, &i.state, &g, &frames, &i.v12, &i.acc);
             o.s = r.s;
             o.finert = r.finert;
             o.mv = r.mv;
@@ -182,23 +184,12 @@ impl CpuEval {
     /// as they were.
     #[inline]
     pub fn one_residual(e: &ElemData, i: &ElemIn, inertia: bool, o: &mut ElemOut) {
-        Self::one_residual_in(e, i, inertia, o, &mut inertia::GradRows::default());
-    }
-
-    #[inline]
-    fn one_residual_in(
-        e: &ElemData,
-        i: &ElemIn,
-        inertia: bool,
-        o: &mut ElemOut,
-        sc: &mut inertia::GradRows,
-    ) {
         // one gradient for the force, the energy and the inertial forces
         let (frames, g, f, u) = force::residual_parts(e, &i.state);
         o.f = f;
         o.energy = u;
         if inertia {
-            let r = inertia::inertia_residual_from(e, &i.state, &g, frames, &i.v12, &i.acc, sc);
+            let r = inertia::inertia_forces(e, &i.state, &g, &frames, &i.v12, &i.acc);
             o.s = r.s;
             o.finert = r.finert;
             o.mv = r.mv;
@@ -210,18 +201,12 @@ impl CpuEval {
     }
 }
 
-/// Apply one per-element function to every element of a batch, with one inertia
+/// Apply the full per-element evaluation to every element of a batch, with one inertia
 /// workspace for all of them.
-fn each(
-    elems: &[ElemData],
-    inputs: &[ElemIn],
-    inertia: bool,
-    out: &mut [ElemOut],
-    f: fn(&ElemData, &ElemIn, bool, &mut ElemOut, &mut inertia::GradRows),
-) {
+fn each_full(elems: &[ElemData], inputs: &[ElemIn], inertia: bool, out: &mut [ElemOut]) {
     let mut sc = inertia::GradRows::default();
     for ((e, i), o) in elems.iter().zip(inputs).zip(out.iter_mut()) {
-        f(e, i, inertia, o, &mut sc);
+        CpuEval::one_in(e, i, inertia, o, &mut sc);
     }
 }
 
@@ -233,7 +218,7 @@ impl ElementEval for CpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        each(elems, inputs, inertia, out, CpuEval::one_in);
+        each_full(elems, inputs, inertia, out);
         Ok(())
     }
     fn evaluate_residual(
@@ -243,7 +228,9 @@ impl ElementEval for CpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        each(elems, inputs, inertia, out, CpuEval::one_residual_in);
+        for ((e, i), o) in elems.iter().zip(inputs).zip(out.iter_mut()) {
+            CpuEval::one_residual(e, i, inertia, o);
+        }
         Ok(())
     }
     fn name(&self) -> String {
