@@ -1,5 +1,8 @@
 // Shared part of the beam kernels: buffer structs, dual and hyper-dual scalars, and the
-// element kinematics, line by line the CPU functions of src/element/kinematics.rs and ad.rs.
+// element kinematics and closed-form gradient, line by line the CPU functions of
+// src/element/kinematics.rs, force.rs (`gradient`) and ad.rs. Functions carry the name of
+// the Rust function they mirror; `_d` / `_h` are its instances in dual / hyper-dual
+// numbers (the Rust functions are generic over the scalar).
 //
 // `real` is f32 or f64: the host replaces the alias line below before compiling, so one
 // source serves both precisions. Every struct holds only arrays of `real`, so WGSL adds no
@@ -174,6 +177,167 @@ fn hm_vec(m: HM, v: HV) -> HV {
 }
 
 // ------------------------------------------------------------ kinematics (kinematics.rs)
+// kinematics::Kin
+struct Kin {
+    tc: M3,
+    phi: array<real, 6>,
+    u1: real,
+    len: real,
+}
+
+fn ang(e: vec3<real>, tc2: vec3<real>, tc3: vec3<real>, t: M3) -> vec3<real> {
+    let t1 = m3_col(t, 0u);
+    let t2 = m3_col(t, 1u);
+    let t3 = m3_col(t, 2u);
+    return vec3<real>(
+        0.5 * (dot3(tc3, t2) - dot3(tc2, t3)),
+        0.5 * (dot3(e, t3) - dot3(tc3, t1)),
+        0.5 * (dot3(tc2, t1) - dot3(e, t2)),
+    );
+}
+
+// kinematics::kinematics
+fn kinematics(chord0: array<real, 3>, l0: real, u1: vec3<real>, u2: vec3<real>, t1: M3, t2: M3) -> Kin {
+    let bx = vec3<real>(chord0[0], chord0[1], chord0[2]);
+    let d = vec3<real>(u2.x - u1.x, u2.y - u1.y, u2.z - u1.z);
+    let lvec = vec3<real>(bx.x + d.x, bx.y + d.y, bx.z + d.z);
+    let len = sqrt(dot3(lvec, lvec));
+    // cancellation-free ℓ − L0 (as on the CPU): decisive in f32
+    let s1 = (2.0 * dot3(bx, d) + dot3(d, d)) / (len + l0);
+    let il = 1.0 / len;
+    let e = vec3<real>(lvec.x * il, lvec.y * il, lvec.z * il);
+    let c = cross3(e, m3_col(t1, 1u));
+    let ic = 1.0 / sqrt(dot3(c, c));
+    let tc3 = vec3<real>(c.x * ic, c.y * ic, c.z * ic);
+    let tc2 = cross3(tc3, e);
+    let a1 = ang(e, tc2, tc3, t1);
+    let a2 = ang(e, tc2, tc3, t2);
+    var k: Kin;
+    k.tc = M3(
+        array<real, 3>(e.x, tc2.x, tc3.x),
+        array<real, 3>(e.y, tc2.y, tc3.y),
+        array<real, 3>(e.z, tc2.z, tc3.z),
+    );
+    k.phi = array<real, 6>(a1.x, a1.y, a1.z, a2.x, a2.y, a2.z);
+    k.u1 = s1;
+    k.len = len;
+    return k;
+}
+
+// kinematics::stretch: chord change plus the length the bending shape adds
+fn stretch(l0: real, k: Kin) -> real {
+    let fy1 = k.phi[1];
+    let fz1 = k.phi[2];
+    let fy2 = k.phi[4];
+    let fz2 = k.phi[5];
+    let q = 2.0 * fy1 * fy1 - fy1 * fy2 + 2.0 * fy2 * fy2 + 2.0 * fz1 * fz1 - fz1 * fz2
+        + 2.0 * fz2 * fz2;
+    return k.u1 + (l0 / 30.0) * q;
+}
+
+// kinematics::energy: Bernoulli strain energy
+fn energy(p: array<real, 7>, l0: real, k: Kin) -> real {
+    let fx1 = k.phi[0];
+    let fy1 = k.phi[1];
+    let fz1 = k.phi[2];
+    let fx2 = k.phi[3];
+    let fy2 = k.phi[4];
+    let fz2 = k.phi[5];
+    let tw = fx2 - fx1;
+    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
+    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
+    let s = stretch(l0, k);
+    return 0.5 * (p[0] / l0) * s * s + 0.5 * (p[3] / l0) * tw * tw + (2.0 * p[2] / l0) * bz
+        + (2.0 * p[1] / l0) * by;
+}
+
+// force::Grad: the deformation measures' first derivatives over the 12 element dofs
+struct Grad {
+    kin: Kin,
+    dtheta: array<array<real, 12>, 3>,
+    dphi: array<array<real, 12>, 6>,
+    dlen: array<real, 12>,
+    // the frame spin in convected components [θx, θy, θz] per dof
+    spin: array<array<real, 12>, 3>,
+    ab: real,
+    // D_i = T_Cᵀ T_i
+    rel: array<M3, 2>,
+    // ψ_i = T_Cᵀ(δπ_i − δθ_C) per node, component and dof
+    psi: array<array<array<real, 12>, 3>, 2>,
+}
+
+// force::gradient (closed form)
+fn gradient(chord0: array<real, 3>, l0: real, u1: vec3<real>, u2: vec3<real>, t1: M3, t2: M3) -> Grad {
+    var g: Grad;
+    g.kin = kinematics(chord0, l0, u1, u2, t1, t2);
+    let e = m3_col(g.kin.tc, 0u);
+    let tc2 = m3_col(g.kin.tc, 1u);
+    let tc3 = m3_col(g.kin.tc, 2u);
+    let n = m3_col(t1, 1u);
+    let ab = dot3(n, e) / dot3(n, tc2);
+    let il = 1.0 / g.kin.len;
+    var thx: array<real, 12>;
+    var thy: array<real, 12>;
+    var thz: array<real, 12>;
+    for (var k = 0u; k < 3u; k++) {
+        g.dlen[k] = -e[k];
+        g.dlen[6u + k] = e[k];
+        thz[k] = -tc2[k] * il;
+        thz[6u + k] = tc2[k] * il;
+        thy[k] = tc3[k] * il;
+        thy[6u + k] = -tc3[k] * il;
+    }
+    for (var j = 0u; j < 12u; j++) {
+        thx[j] = ab * thy[j];
+    }
+    for (var k = 0u; k < 3u; k++) {
+        thx[3u + k] = thx[3u + k] + e[k] - ab * tc2[k];
+    }
+    for (var r = 0u; r < 3u; r++) {
+        for (var j = 0u; j < 12u; j++) {
+            g.dtheta[r][j] = e[r] * thx[j] + tc2[r] * thy[j] + tc3[r] * thz[j];
+        }
+    }
+    for (var i = 0u; i < 2u; i++) {
+        var t = t1;
+        if i == 1u {
+            t = t2;
+        }
+        // D = T_Cᵀ T_i and G = ½(tr D I − D)
+        var dd: M3;
+        for (var r = 0u; r < 3u; r++) {
+            for (var c = 0u; c < 3u; c++) {
+                dd[r][c] = dot3(m3_col(g.kin.tc, r), m3_col(t, c));
+            }
+        }
+        let tr = dd[0][0] + dd[1][1] + dd[2][2];
+        var gg: M3;
+        for (var r = 0u; r < 3u; r++) {
+            for (var c = 0u; c < 3u; c++) {
+                gg[r][c] = -(0.5 * dd[r][c]);
+            }
+            gg[r][r] = gg[r][r] + 0.5 * tr;
+        }
+        // ψ = T_Cᵀ(δπ_i − δθ_C), per dof column j
+        for (var j = 0u; j < 12u; j++) {
+            var w = vec3<real>(-g.dtheta[0][j], -g.dtheta[1][j], -g.dtheta[2][j]);
+            if j / 3u == 1u + 2u * i {
+                w[j % 3u] = w[j % 3u] + 1.0;
+            }
+            let psi = vec3<real>(dot3(e, w), dot3(tc2, w), dot3(tc3, w));
+            for (var r = 0u; r < 3u; r++) {
+                g.dphi[3u * i + r][j] = gg[r][0] * psi[0] + gg[r][1] * psi[1] + gg[r][2] * psi[2];
+                g.psi[i][r][j] = psi[r];
+            }
+        }
+        g.rel[i] = dd;
+    }
+    g.spin = array<array<real, 12>, 3>(thx, thy, thz);
+    g.ab = ab;
+    return g;
+}
+
+// ---------------------------------------------------- the same in dual numbers
 struct KinD {
     tc: DM,
     phi: array<D, 6>,
@@ -253,9 +417,9 @@ fn kin_h(chord0: array<real, 3>, l0: real, u1: HV, u2: HV, t1: HM, t2: HM) -> Ki
     return k;
 }
 
-// force::gradient in dual numbers: the deformation measures' first derivatives over the 12
-// element dofs (closed form). Evaluated on dual inputs its derivative part is the
-// derivative of the gradient, which gives the tangent.
+// force::gradient in dual numbers (its kin, dtheta, dphi and dlen: what
+// inertia::field_rows uses). On inputs moving along the nodal velocities
+// (perturb_dual) the derivative parts are the gradient's time derivative, which gives ġ.
 struct GradD {
     kin: KinD,
     dtheta: array<array<D, 12>, 3>,
@@ -328,28 +492,23 @@ fn gradient_d(chord0: array<real, 3>, l0: real, u1: DV, u2: DV, t1: DM, t2: DM) 
     return g;
 }
 
-// Node frame T = r · frame0 and its dual perturbation along one element dof
-// (kinematics::perturb_dual): dof `comp` of this node (0..2 translation, 3..5 spin), or none.
-fn frame_dual(t: M3, comp: u32, on: bool) -> DM {
-    var out: DM;
-    var w = vec3<real>(0.0, 0.0, 0.0);
-    if on && comp >= 3u {
-        w[comp - 3u] = 1.0;
-    }
+// kinematics::perturb_dual: node position and frame moving along one element-dof
+// direction d (translation d[0..3], spatial spin d[3..6]), in dual numbers
+struct NodeD {
+    x: DV,
+    t: DM,
+}
+
+fn perturb_dual(x: vec3<real>, t: M3, d: array<real, 6>) -> NodeD {
+    var out: NodeD;
+    out.x = DV(D(x.x, d[0]), D(x.y, d[1]), D(x.z, d[2]));
+    let w = vec3<real>(d[3], d[4], d[5]);
     for (var j = 0u; j < 3u; j++) {
         let tj = m3_col(t, j);
         let a = cross3(w, tj);
         for (var i = 0u; i < 3u; i++) {
-            out[i][j] = D(tj[i], a[i]);
+            out.t[i][j] = D(tj[i], a[i]);
         }
-    }
-    return out;
-}
-
-fn pos_dual(x: array<real, 3>, comp: u32, on: bool) -> DV {
-    var out = DV(dc(x[0]), dc(x[1]), dc(x[2]));
-    if on && comp < 3u {
-        out[comp].y = 1.0;
     }
     return out;
 }

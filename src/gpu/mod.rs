@@ -1,6 +1,10 @@
 //! GPU backend of the element stage: the WGSL kernels `shaders/beam_force.wgsl` (f, K,
-//! strain energy) and `shaders/beam_inertia.wgsl` (M, S, C) run through `wgpu` on every
-//! element of a batch; assembly and the sparse factorization stay on the CPU.
+//! strain energy), `shaders/beam_inertia.wgsl` (M, S, C) and `shaders/beam_residual.wgsl`
+//! (f, energy, S, M·a + S, M·v) run through `wgpu` on every element of a batch, one
+//! invocation per element each; assembly and the sparse factorization stay on the CPU.
+//! Each kernel is the twin of the CPU's production function (closed-form tangent
+//! `force::internal_force_tangent_energy`, `inertia::inertia_full`,
+//! `CpuEval::one_residual`), function for function.
 //!
 //! - [`adapters`] lists what the machine offers (Vulkan and OpenGL ES backends) with
 //!   device type and SHADER_F64 support; [`select`] picks one for `--backend`.
@@ -614,9 +618,9 @@ impl GpuContext {
         GpuContext::new(a, s, precision)
     }
 
-    /// Largest batch one dispatch can take (12 invocations per element in beam_force).
+    /// Largest batch one dispatch can take (one invocation per element in every kernel).
     pub fn max_elements(&self) -> usize {
-        (self.max_groups as usize * WORKGROUP as usize) / 12
+        self.max_groups as usize * WORKGROUP as usize
     }
 
     /// Model data written to the device so far.
@@ -1138,7 +1142,7 @@ impl GpuContext {
             if nf > 0 {
                 pass.set_pipeline(&self.force_pipe);
                 pass.set_bind_group(0, &g.force, &[]);
-                pass.dispatch_workgroups((nf as u32 * 12).div_ceil(WORKGROUP), 1, 1);
+                pass.dispatch_workgroups((nf as u32).div_ceil(WORKGROUP), 1, 1);
                 reads.push((&b.force, &b.staging_force, (nf * sizes[1]) as u64));
                 dispatches += 1;
                 if inertia_full {

@@ -31,19 +31,24 @@ pub struct KernelCounts {
     pub words_device: f64,
 }
 
-/// beam_force (12 invocations, each the whole dual-number gradient: 12 × 4 490) plus
-/// beam_inertia (gradients 9 200, M 7 500, S and the 12 hyper-dual passes of C 58 500).
+/// beam_force (one invocation per element: the closed-form gradient 1 300, force and
+/// energy 240, the closed-form tangent 5 900) plus beam_inertia (the node frames and the
+/// gradient in dual numbers along v 3 950, the field-gradient rows g and ġ 15 100,
+/// M 6 050, C = 2P + M·skew 11 700, S's hyper-dual pass 4 300). Before the kernels were
+/// put on the production routes: 129 000 (12 dual-number column passes for K, 13
+/// hyper-dual passes).
 pub const FULL: KernelCounts = KernelCounts {
-    flops: 129_000.0,
+    flops: 48_600.0,
     words_up: 36.0,
     words_down: 460.0,
     words_device: 20.0 + 36.0 + 460.0,
 };
 
-/// beam_residual with inertia: force value 4 100, gradients 9 200, field rates 1 700,
-/// one hyper-dual pass 3 400, three projections 3 500.
+/// beam_residual with inertia: force and energy from the plain gradient 1 530, the
+/// field-gradient rows 5 240, S (one hyper-dual pass and its projection) 4 300, M·a and
+/// M·v without M 3 530 (before: 22 000, the force in dual numbers with zero lanes).
 pub const RESIDUAL: KernelCounts = KernelCounts {
-    flops: 22_000.0,
+    flops: 14_700.0,
     words_up: 48.0,
     words_down: 52.0,
     words_device: 20.0 + 48.0 + 52.0,
@@ -63,8 +68,8 @@ pub struct GpuSpec {
     pub mem_bw: f64,
     /// host link bandwidth per direction [B/s]
     pub link_bw: f64,
-    /// fraction of the vector peak the kernels reach (one thread per element or column,
-    /// private arrays spilled, branches): an assumption, see the doc
+    /// fraction of the vector peak the kernels reach (one thread per element, private
+    /// arrays spilled, branches): an assumption, see the doc
     pub efficiency: f64,
     /// one round trip: submit, fence wait, two transfers' set-up, map [s]
     pub latency_s: f64,
