@@ -1,9 +1,9 @@
 //! Internal force and tangent of the beam element: the closed-form gradient of the
 //! Bernoulli strain energy and its derivative, also in closed form (material part
 //! Bᵀ H B plus the geometric part of the moments and the axial force). The production
-//! route of [`super::CpuEval`]; its WGSL twin is `shaders/beam_force.wgsl`, which still
-//! takes the tangent as the dual-number derivative of the force, column by column (the
-//! route kept as [`super::reference::internal_force_tangent_dual`]).
+//! route of [`super::CpuEval`]; its WGSL twin is `shaders/beam_force.wgsl` (the
+//! dual-number derivative of the force, column by column, is kept for the tests as
+//! [`super::reference::internal_force_tangent_dual`]).
 
 use super::ad::{mcol, vcross, vdot, Real, M3, V3};
 use super::kinematics::*;

@@ -9,7 +9,10 @@
 //! and is done with 4-point Gauss-Legendre, which is exact for degree 7.
 
 //!
-//! The production route of [`super::CpuEval`]; its WGSL twin is `shaders/beam_inertia.wgsl`.
+//! The production route of [`super::CpuEval`]: M and C from the 36 gradient rows
+//! ([`GradRows`]), S from one second-order jet pass ([`field_jets`]), the inertial forces
+//! M·a + S and M·v from the factored gradients ([`FieldMaps`], no rows). Its WGSL twin is
+//! `shaders/beam_inertia.wgsl` (S there still by the hyper-dual pass, the same numbers).
 
 use super::ad::{mvec, vadd, vsub, Dual, HyperDual, Jet2, Real, M3, V3};
 use super::force::*;
