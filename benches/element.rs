@@ -103,14 +103,18 @@ fn main() {
         "internal_force:         {:.2} us/call   ({acc:.1})",
         dt * 1e6
     );
-    stage_report(&e, &s, &v, &a);
-    flop_report(&e, &s, [t_tangent, t_dual, t_inertia, t_residual]);
+    let [t_full, t_res] = stage_report(&e, &s, &v, &a);
+    flop_report(
+        &e,
+        &s,
+        [t_tangent, t_dual, t_inertia, t_residual, t_full, t_res],
+    );
 }
 
 /// What a Newton iteration pays per element: the stage's full evaluation (force, K,
 /// energy, M, S, C and the inertial products) and its residual-only one, over a batch of
 /// ten elements as the blade has, outputs written in place.
-fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) {
+fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) -> [f64; 2] {
     let ne = 10;
     let elems = vec![*e; ne];
     let inputs = vec![
@@ -123,7 +127,11 @@ fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) {
     ];
     let mut out = vec![ElemOut::default(); ne];
     let n = 4000;
-    for (name, residual) in [("full", false), ("residual-only", true)] {
+    let mut times = [0.0; 2];
+    for (k, (name, residual)) in [("full", false), ("residual-only", true)]
+        .into_iter()
+        .enumerate()
+    {
         let t = Instant::now();
         let mut acc = 0.0;
         for _ in 0..n {
@@ -136,11 +144,13 @@ fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) {
             acc += out[3].finert[2] + out[7].f[1];
         }
         let dt = t.elapsed().as_secs_f64() / (n * ne) as f64;
+        times[k] = dt;
         println!(
             "stage, {name:<14} {:.2} us/element   (CpuEval, 10 elements; {acc:.1})",
             dt * 1e6
         );
     }
+    times
 }
 
 // ---------------------------------------------------------------------------------------
@@ -232,7 +242,17 @@ const DUAL: [u64; 4] = [2, 3, 7, 3];
 const fn dual_vec(n: u64) -> [u64; 4] {
     [1 + n, 1 + 3 * n, 2 + 5 * n, 1 + 2 * n]
 }
-const HYPER_DUAL: [u64; 4] = [4, 14, 26, 10];
+/// second-order jet (value, first, second derivative): mul 6 mul + 4 add, div 11 + a mul,
+/// sqrt 9
+const JET2: [u64; 4] = [3, 10, 21, 9];
+/// `FieldMaps::apply` (g·x at the 12 (Gauss point, field) pairs): 10 dot products of length
+/// 12 (240) and per Gauss point the local field changes (20), three 3 × 3 products (45),
+/// three cross products (27) and the sums (21)
+const FIELD_APPLY: u64 = 240 + 4 * (20 + 45 + 27 + 21);
+/// `FieldMaps::project` (gᵀy): per Gauss point three cross products (27), the moment and
+/// chord sums (21), three Tᵀ products (45) and the coefficient updates (32); then 12 dofs
+/// × (10 multiply-adds) and the chord shares (6)
+const FIELD_PROJECT: u64 = 4 * (27 + 21 + 45 + 32) + 12 * 20 + 6;
 
 fn counted_frames(e: &ElemData, s: &ElemState) -> (V3<Cnt>, V3<Cnt>, M3<Cnt>, M3<Cnt>) {
     let t1 = mat_mul(&s.r1, &e.frame0);
@@ -266,6 +286,14 @@ fn field_ops(e: &ElemData, s: &ElemState) -> [u64; 4] {
     for (xi, _) in GAUSS4 {
         std::hint::black_box(section_fields(&kin, u1, chord, xi));
     }
+    take_ops()
+}
+
+/// Operations of the element's closed-form gradient alone (one scalar pass).
+fn grad_only_ops(e: &ElemData, s: &ElemState) -> [u64; 4] {
+    let (u1, u2, t1, t2) = counted_frames(e, s);
+    take_ops();
+    std::hint::black_box(gradient(e.chord0, e.l0, u1, u2, &t1, &t2));
     take_ops()
 }
 
@@ -318,8 +346,8 @@ unsafe fn fma_peak() -> f64 {
 }
 
 /// Print flops per call, GFLOP/s at the measured call times, and the fraction of the peak.
-fn flop_report(e: &ElemData, s: &ElemState, times: [f64; 4]) {
-    let [t_tangent, t_dual, t_inertia, t_residual] = times;
+fn flop_report(e: &ElemData, s: &ElemState, times: [f64; 6]) {
+    let [t_tangent, t_dual, t_inertia, t_residual, t_full, t_res] = times;
     let f = force_ops(e, s);
     let fld = field_ops(e, s);
     let grad = gradient_ops(e, s);
@@ -329,20 +357,27 @@ fn flop_report(e: &ElemData, s: &ElemState, times: [f64; 4]) {
     let dual = flops(f, F64) + flops(f, dual_vec(9));
     // rank-1 updates over the 36 (Gauss point, field, component) rows of 12 dofs
     let rank = |per_row: u64| 36 * per_row;
-    // S: one hyper-dual field pass, then w_q h_q g_q over the rows
-    let svec = flops(fld, HYPER_DUAL) + rank(1 + 2 * 12);
-    // full: g and ġ from one dual pass; M (12 rows of M × 36 updates), P for C (likewise,
-    // ×2 folded in), the spin-ordering correction (2 nodes × 12 × 3 × 3 mul-add), S, and
-    // the products M·acc, M·v from the rows
-    let products = rank(2 * (2 * 12) + 2 + 2 * (2 * 12));
+    // the inertial forces from the factored gradients: one f64 gradient, S's jet pass of
+    // the position fields, g·x for acc and v, gᵀy for M acc, M v and S (weights: 36 each)
+    let forces = flops(grad_only_ops(e, s), F64)
+        + flops(fld, JET2)
+        + 2 * FIELD_APPLY
+        + 3 * (FIELD_PROJECT + 36)
+        + 12;
+    // full: g and ġ from one dual pass of the gradient rows; M (12 rows of M × 36
+    // updates), P for C (likewise, ×2 folded in), the spin-ordering correction (2 nodes ×
+    // 12 × 3 × 3 mul-add), and the forces as above
     let inertia = flops(grad, DUAL)
         + 12 * rank(1 + 2 * 12)
         + 12 * rank(2 + 2 * 12)
         + 2 * 12 * 3 * 3 * 2
-        + svec
-        + products;
-    // residual: g from one f64 pass, S, the products; no M
-    let residual = flops(grad, F64) + svec + products;
+        + forces;
+    let residual = forces;
+    // the stage shares one f64 gradient between the force and the inertial forces (the
+    // strain energy's few flops are not counted)
+    let grad_f64 = flops(grad_only_ops(e, s), F64);
+    let stage_full = tangent + inertia - grad_f64;
+    let stage_res = flops(f, F64) + forces - grad_f64;
     let peak = peak_gflops();
     println!("\nfloating-point work per element call (counted) and achieved rate, one core:");
     for (name, fl, t) in [
@@ -350,6 +385,8 @@ fn flop_report(e: &ElemData, s: &ElemState, times: [f64; 4]) {
         ("  (9-lane dual reference)", dual, t_dual),
         ("inertia (M, S, C)", inertia, t_inertia),
         ("inertia_residual (M a + S, M v)", residual, t_residual),
+        ("stage, full evaluation", stage_full, t_full),
+        ("stage, residual-only evaluation", stage_res, t_res),
     ] {
         let g = fl as f64 / t * 1e-9;
         let frac = peak.map_or("n/a".to_string(), |p| format!("{:.1} %", 100.0 * g / p));
