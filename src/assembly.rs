@@ -22,17 +22,24 @@ use crate::math::*;
 use crate::model::Model;
 use crate::solver::batch::{block_on, Posted, Slot};
 
-/// Per-element gathered data the scatter needs besides the element outputs.
+/// Per-node gathered data: the node's chain and position (which the scatter needs
+/// besides the element outputs) and its velocity and acceleration, formed once per node
+/// although two elements meet there.
 #[derive(Clone, Copy)]
 struct Gathered {
-    ch: [Chain; 2],
-    y: [Vec3; 2],
+    ch: Chain,
+    y: Vec3,
+    /// (ẋ, ω) and (ẍ, α) including the convective part; zero outside dynamics
+    v6: [f64; 6],
+    a6: [f64; 6],
 }
 
 /// Scratch of the element stage, sized once per model (the hot path does not allocate).
 #[derive(Default)]
 struct Scratch {
-    gathered: Vec<Gathered>,
+    /// per node, valid where `seen`
+    nodes: Vec<Gathered>,
+    seen: Vec<bool>,
     inputs: Vec<ElemIn>,
     out: Vec<ElemOut>,
 }
@@ -158,14 +165,18 @@ impl Assembler {
     /// An assembler whose element stage is `eval`.
     pub fn with_eval(model: &Model, eval: Arc<dyn ElementEval>) -> Assembler {
         let ne = model.elements.len();
+        let nn = model.x0.len();
         let empty = Gathered {
-            ch: [Chain::empty(); 2],
-            y: [[0.0; 3]; 2],
+            ch: Chain::empty(),
+            y: [0.0; 3],
+            v6: [0.0; 6],
+            a6: [0.0; 6],
         };
         Assembler {
             eval,
             scratch: Mutex::new(Scratch {
-                gathered: vec![empty; ne],
+                nodes: vec![empty; nn],
+                seen: vec![false; nn],
                 inputs: vec![
                     ElemIn {
                         state: element::ElemState {
@@ -300,38 +311,38 @@ impl Assembler {
         // batch member waits for its round
         let mut scratch =
             std::mem::take(&mut *self.scratch.lock().unwrap_or_else(|p| p.into_inner()));
-        // (a) gather: element states, chains, nodal velocities and accelerations
+        // (a) gather: element states, the nodes' chains, velocities and accelerations
+        scratch.seen.iter_mut().for_each(|x| *x = false);
         for (ie, el) in model.elements.iter().enumerate() {
-            let (n1, n2) = (el.n1, el.n2);
-            let es = joint::elem_state(model, s, ie);
-            let ch = [
-                joint::node_chain(model, s, n1),
-                joint::node_chain(model, s, n2),
-            ];
-            let y = [
-                joint::node_position(model, s, n1),
-                joint::node_position(model, s, n2),
-            ];
-            let mut v12 = [0.0; NDOF];
-            let mut a12 = [0.0; NDOF];
-            if c.inertia {
-                for nd in 0..2 {
-                    let (vl, va) = ch[nd].velocity(y[nd], &s.v);
-                    let (al, aa) = ch[nd].velocity(y[nd], &s.a);
-                    let (cl, ca) = ch[nd].convective_acc(y[nd], &s.v);
-                    v12[6 * nd..6 * nd + 3].copy_from_slice(&vl);
-                    v12[6 * nd + 3..6 * nd + 6].copy_from_slice(&va);
-                    a12[6 * nd..6 * nd + 3].copy_from_slice(&add(al, cl));
-                    a12[6 * nd + 3..6 * nd + 6].copy_from_slice(&add(aa, ca));
+            for n in [el.n1, el.n2] {
+                if scratch.seen[n] {
+                    continue;
                 }
+                scratch.seen[n] = true;
+                let ch = joint::node_chain(model, s, n);
+                let y = joint::node_position(model, s, n);
+                let (mut v6, mut a6) = ([0.0; 6], [0.0; 6]);
+                if c.inertia {
+                    let (vl, va) = ch.velocity(y, &s.v);
+                    let (al, aa) = ch.velocity(y, &s.a);
+                    let (cl, ca) = ch.convective_acc(y, &s.v);
+                    v6[..3].copy_from_slice(&vl);
+                    v6[3..].copy_from_slice(&va);
+                    a6[..3].copy_from_slice(&add(al, cl));
+                    a6[3..].copy_from_slice(&add(aa, ca));
+                }
+                scratch.nodes[n] = Gathered { ch, y, v6, a6 };
             }
+            let es = joint::elem_state(model, s, ie);
+            let (g1, g2) = (&scratch.nodes[el.n1], &scratch.nodes[el.n2]);
+            let v12: Vec12 = std::array::from_fn(|j| if j < 6 { g1.v6[j] } else { g2.v6[j - 6] });
+            let a12: Vec12 = std::array::from_fn(|j| if j < 6 { g1.a6[j] } else { g2.a6[j - 6] });
             // gravity: the consistent load of a uniform field is M times a rigid
             // translation by g, so it joins the acceleration that multiplies M
             let acc: Vec12 = std::array::from_fn(|j| {
                 let gj = if j % 6 < 3 { g[j % 3] } else { 0.0 };
                 a12[j] - gfac * gj
             });
-            scratch.gathered[ie] = Gathered { ch, y };
             scratch.inputs[ie] = ElemIn {
                 state: es,
                 v12,
@@ -394,7 +405,8 @@ impl Assembler {
             let ed = &model.elem_data[ie];
             let n1 = el.n1;
             let es = &scratch.inputs[ie].state;
-            let Gathered { ch, y } = scratch.gathered[ie];
+            let (g1, g2) = (&scratch.nodes[el.n1], &scratch.nodes[el.n2]);
+            let (ch, y) = ([&g1.ch, &g2.ch], [g1.y, g2.y]);
             let v12 = scratch.inputs[ie].v12;
             let o = &scratch.out[ie];
             let mut f = o.f;
@@ -448,7 +460,7 @@ impl Assembler {
                         comb[i][j] = c.ck * k[i][j] + c.cc * cij + c.cm * m[i][j];
                     }
                 }
-                scatter_pair(s, model, &ch, &y, &comb, sk);
+                scatter_pair(s, model, ch, &y, &comb, sk);
                 for nd in 0..2 {
                     let fl = [f[6 * nd], f[6 * nd + 1], f[6 * nd + 2]];
                     let ml = [f[6 * nd + 3], f[6 * nd + 4], f[6 * nd + 5]];
@@ -647,7 +659,7 @@ fn active_eq(s: &State, model: &Model, dof: usize) -> Option<usize> {
 fn scatter_pair(
     s: &State,
     model: &Model,
-    ch: &[Chain; 2],
+    ch: [&Chain; 2],
     y: &[Vec3; 2],
     a: &Mat12,
     sk: &mut dyn Sink,
@@ -660,7 +672,7 @@ fn scatter_pair(
                     blk[i][j] = a[6 * na + i][6 * nb + j];
                 }
             }
-            scatter_block(s, model, &ch[na], y[na], &ch[nb], y[nb], &blk, sk);
+            scatter_block(s, model, ch[na], y[na], ch[nb], y[nb], &blk, sk);
         }
     }
 }
