@@ -464,7 +464,7 @@ impl Assembler {
                 for nd in 0..2 {
                     let fl = [f[6 * nd], f[6 * nd + 1], f[6 * nd + 2]];
                     let ml = [f[6 * nd + 3], f[6 * nd + 4], f[6 * nd + 5]];
-                    geometric(s, model, &ch[nd], y[nd], fl, ml, c.ck, sk);
+                    geometric(s, model, ch[nd], y[nd], fl, ml, c.ck, sk);
                 }
             }
         }
