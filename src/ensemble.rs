@@ -900,7 +900,8 @@ fn run_core(
                     {
                         panic!("injected panic in a variant (LATDYN_FAULT_PANIC=variant)");
                     }
-                    dynamics::run_member(m, ctx, run_slot, |_, _| {}).await
+                    // no factor size: an outcome has none
+                    dynamics::run_member(m, ctx, run_slot, false, |_, _| {}).await
                 }),
             });
             member_variant.push(v);
