@@ -488,7 +488,9 @@ impl<'m> Integrator<'m> {
             (Some(eval), None) => Assembler::with_eval(model, eval.clone()),
             (None, None) => Assembler::new(model),
         };
-        let sys = NewtonSystem::with_symbolic(model, &asm, &s, ctx.symbolic)?;
+        // the pattern without an element evaluation: `initial_acceleration` below
+        // evaluates before anything reads the system's forces
+        let sys = NewtonSystem::with_symbolic_unevaluated(model, &asm, &s, ctx.symbolic)?;
         let nd = model.dofs.len();
         let mut it = Integrator {
             model,
