@@ -288,6 +288,38 @@ impl Assembler {
         info
     }
 
+    /// The Jacobian pattern at `s`: every (row, col) that [`Assembler::evaluate`] with all
+    /// coefficients 1 adds to a sink, each once or more, with zero values, without the
+    /// element stage. An element's blocks (`scatter_pair`) and geometric stiffness
+    /// (`Chain::geometric`) report every pair of their chains' active dofs whatever the
+    /// values; bodies, loads, hinges and frozen rows are assembled as in `evaluate`. Not
+    /// counted in [`Assembler::stage_times`].
+    pub fn pattern(&self, model: &Model, s: &State, sink: &mut dyn Sink) {
+        let c = Coeffs::dynamic(1.0, 1.0, 1.0);
+        let mut gen = vec![0.0; model.dofs.len()];
+        let mut info = AssemblyInfo::default();
+        let zero: Mat12 = [[0.0; NDOF]; NDOF];
+        for el in &model.elements {
+            let (n1, n2) = (el.n1, el.n2);
+            let ch = [
+                joint::node_chain(model, s, n1),
+                joint::node_chain(model, s, n2),
+            ];
+            let y = [
+                joint::node_position(model, s, n1),
+                joint::node_position(model, s, n2),
+            ];
+            scatter_pair(s, model, &ch, &y, &zero, sink);
+            for nd in 0..2 {
+                geometric(s, model, &ch[nd], y[nd], [0.0; 3], [0.0; 3], c.ck, sink);
+            }
+        }
+        bodies(model, s, c, &mut gen, Some(&mut *sink), &mut info);
+        loads(model, s, c, &mut gen, Some(&mut *sink), &mut info);
+        hinges(model, s, c, &mut gen, Some(&mut *sink), &mut info);
+        frozen_rows(model, s, sink);
+    }
+
     /// The beam elements: gather each element's state, chains, velocities and
     /// accelerations; run the element stage on all of them at once (on the spot, or posted
     /// to `slot`); scatter forces and matrices through the chains. Returns the time [ns]

@@ -449,20 +449,36 @@ pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, 
             c.variants.len()
         )));
     }
-    let mut models = Vec::with_capacity(global_index.len());
-    for &gi in &global_index {
+    // The file is read and parsed once; each variant compiles its own parameter values
+    // from the parsed spec (the same model as `model::load`), on the campaign's threads.
+    // The first failing variant (in order) is the one reported, as when compiled in turn.
+    let parsed = model::parse_file(&c.model_path)?;
+    let compile = |gi: usize| -> Result<Model, model::ModelError> {
         let mut sets = c.base.clone();
         sets.extend(c.variants[gi].iter().cloned());
-        let mut m = model::load(&c.model_path, &sets)?;
+        let mut m = parsed.compile(&sets)?;
         if c.accuracy.is_some() {
             m.solver.accuracy = c.accuracy;
         }
-        models.push(m);
-    }
+        Ok(m)
+    };
+    let models: Vec<Model> = if c.threads > 1 && global_index.len() > 1 {
+        let compiled: Vec<Result<Model, model::ModelError>> = rayon::ThreadPoolBuilder::new()
+            .num_threads(c.threads)
+            .build()
+            .map_err(|e| EnsembleError::Invalid(format!("thread pool: {e}")))?
+            .install(|| global_index.par_iter().map(|&gi| compile(gi)).collect());
+        compiled.into_iter().collect::<Result<_, _>>()?
+    } else {
+        global_index
+            .iter()
+            .map(|&gi| compile(gi))
+            .collect::<Result<_, _>>()?
+    };
     let reference = if models.is_empty() {
         let mut sets = c.base.clone();
         sets.extend(c.variants.first().into_iter().flatten().cloned());
-        Some(model::load(&c.model_path, &sets)?)
+        Some(parsed.compile(&sets)?)
     } else {
         None
     };
@@ -884,7 +900,8 @@ fn run_core(
                     {
                         panic!("injected panic in a variant (LATDYN_FAULT_PANIC=variant)");
                     }
-                    dynamics::run_member(m, ctx, run_slot, |_, _| {}).await
+                    // no factor size: an outcome has none
+                    dynamics::run_member(m, ctx, run_slot, false, |_, _| {}).await
                 }),
             });
             member_variant.push(v);

@@ -33,6 +33,47 @@ pub fn load_refined(path: &Path, overrides: &[(String, f64)], factor: usize) -> 
     compile_str_refined(&text, &file, overrides, factor)
 }
 
+/// A model file read and parsed once, to be compiled with several sets of overrides (the
+/// variants of a campaign): [`Parsed::compile`] gives what [`load`] of the same file with
+/// those overrides gives, without reading and parsing the file again. It is `Sync`, so
+/// variants can compile from it in parallel.
+pub struct Parsed {
+    text: String,
+    file: String,
+    spec: Spec,
+    limits: Limits,
+}
+
+/// Reads and parses a model file once (see [`Parsed`]); the errors are those of [`load`]
+/// that do not depend on the overrides.
+pub fn parse_file(path: &Path) -> Result<Parsed> {
+    let file = path.display().to_string();
+    let limits = Limits::from_env().map_err(|e| ModelError::file(&file, None, e))?;
+    let text = limits::read_capped(path, limits.model_bytes, "model file")
+        .map_err(|e| ModelError::file(&file, None, e))?;
+    let spec = spec::parse(&text, &file)?;
+    Ok(Parsed {
+        text,
+        file,
+        spec,
+        limits,
+    })
+}
+
+impl Parsed {
+    /// [`load`] of the parsed file with `overrides` (`--set`).
+    pub fn compile(&self, overrides: &[(String, f64)]) -> Result<Model> {
+        Compiler {
+            file: &self.file,
+            text: &self.text,
+            params: Params::default(),
+            limits: self.limits,
+            refine: 1,
+        }
+        .compile(&self.spec, overrides)
+    }
+}
+
 /// Compiles model text; `path` names the file in messages and in `Model::path`.
 pub fn compile_str(text: &str, path: &str, overrides: &[(String, f64)]) -> Result<Model> {
     compile_str_refined(text, path, overrides, 1)

@@ -11,7 +11,9 @@ pub mod repeat;
 pub mod spec;
 mod types;
 
-pub use compile::{compile_str, compile_str_refined, load, load_refined, parse_set};
+pub use compile::{
+    compile_str, compile_str_refined, load, load_refined, parse_file, parse_set, Parsed,
+};
 pub use error::ModelError;
 pub use limits::Limits;
 pub use repeat::RepeatSummary;

@@ -337,7 +337,7 @@ pub struct RunStats {
     pub notes: Vec<String>,
     /// nonzeros of the Jacobian (iteration matrix) pattern, and of its LU factor L + U
     /// for the last Jacobian assembled (see `SparseLuSymbolic::factor_nnz`); for cost
-    /// reports only
+    /// reports only (0 and None in campaign variants, which do not report them)
     pub matrix_nnz: usize,
     pub factor_nnz: Option<usize>,
 }
@@ -488,7 +488,9 @@ impl<'m> Integrator<'m> {
             (Some(eval), None) => Assembler::with_eval(model, eval.clone()),
             (None, None) => Assembler::new(model),
         };
-        let sys = NewtonSystem::with_symbolic(model, &asm, &s, ctx.symbolic)?;
+        // the pattern without an element evaluation: `initial_acceleration` below
+        // evaluates before anything reads the system's forces
+        let sys = NewtonSystem::with_symbolic_unevaluated(model, &asm, &s, ctx.symbolic)?;
         let nd = model.dofs.len();
         let mut it = Integrator {
             model,
@@ -1241,7 +1243,7 @@ async fn range_floors(model: &Model, ctx: &RunContext<'_>, slot: &Arc<Slot>) -> 
     let mut probe = model.clone();
     probe.solver.accuracy = None;
     // boxed: the probe is a run, and a run awaits its probe
-    let (hist, _, _) = Box::pin(run_member(&probe, ctx, Arc::clone(slot), |_, _| {})).await;
+    let (hist, _, _) = Box::pin(run_member(&probe, ctx, Arc::clone(slot), false, |_, _| {})).await;
     hist.values
         .iter()
         .zip(&model.sensors)
@@ -1339,7 +1341,7 @@ pub fn run_in(
     let member = Member {
         elems: &model.elem_data,
         slot: Arc::clone(&slot),
-        run: Box::pin(run_member(model, ctx, slot, on_sample)),
+        run: Box::pin(run_member(model, ctx, slot, true, on_sample)),
     };
     let mut result = None;
     drive(&*eval, vec![member], |_, r| result = Some(r));
@@ -1351,11 +1353,16 @@ pub fn run_in(
     }
 }
 
-/// [`run_in`] as a member of a batch: every element stage is posted to `slot`.
+/// [`run_in`] as a member of a batch: every element stage is posted to `slot`. With
+/// `sizes`, the stats get the nonzeros of the last Jacobian and of its LU factor
+/// (`RunStats::matrix_nnz`, `factor_nnz`: a simplicial factorization of their own, for
+/// `run --json`); without, they stay 0 and None (campaign variants and the accuracy probe,
+/// whose sizes nobody reads).
 pub(crate) async fn run_member(
     model: &Model,
     ctx: &RunContext<'_>,
     slot: Arc<Slot>,
+    sizes: bool,
     mut on_sample: impl FnMut(f64, &[Vec<f64>]),
 ) -> RunResult {
     let stop = ctx.stop;
@@ -1419,7 +1426,9 @@ pub(crate) async fn run_member(
         record(&integ, &mut hist);
     }
     let mut stats = integ.run_stats();
-    (stats.matrix_nnz, stats.factor_nnz) = integ.sys.factor_size();
+    if sizes {
+        (stats.matrix_nnz, stats.factor_nnz) = integ.sys.factor_size();
+    }
     stats.times.output_s += output_s;
     if prev.is_some() {
         let rel = |x: f64| {

@@ -168,10 +168,37 @@ impl NewtonSystem {
         s: &State,
         symbolic: Option<&Arc<SparseLuSymbolic>>,
     ) -> Result<NewtonSystem, LinalgError> {
+        Self::build(model, asm, s, symbolic, true)
+    }
+
+    /// [`NewtonSystem::with_symbolic`] with the pattern from [`Assembler::pattern`] (no
+    /// element stage) and `gen` left zero: for a caller whose first use is an
+    /// [`NewtonSystem::evaluate_async`], which overwrites `gen` (the integrator, once per
+    /// run and campaign variant).
+    pub(crate) fn with_symbolic_unevaluated(
+        model: &Model,
+        asm: &Assembler,
+        s: &State,
+        symbolic: Option<&Arc<SparseLuSymbolic>>,
+    ) -> Result<NewtonSystem, LinalgError> {
+        Self::build(model, asm, s, symbolic, false)
+    }
+
+    fn build(
+        model: &Model,
+        asm: &Assembler,
+        s: &State,
+        symbolic: Option<&Arc<SparseLuSymbolic>>,
+        evaluate: bool,
+    ) -> Result<NewtonSystem, LinalgError> {
         let mut ps = PatternSink::default();
         let mut gen = vec![0.0; model.dofs.len()];
-        let all = Coeffs::dynamic(1.0, 1.0, 1.0);
-        asm.evaluate(model, s, all, &mut gen, Some(&mut ps));
+        if evaluate {
+            let all = Coeffs::dynamic(1.0, 1.0, 1.0);
+            asm.evaluate(model, s, all, &mut gen, Some(&mut ps));
+        } else {
+            asm.pattern(model, s, &mut ps);
+        }
         for i in 0..model.n_eq {
             ps.entries.push((i, i));
         }
