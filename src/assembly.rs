@@ -309,7 +309,7 @@ impl Assembler {
                 joint::node_position(model, s, n1),
                 joint::node_position(model, s, n2),
             ];
-            scatter_pair(s, model, &ch, &y, &zero, sink);
+            scatter_pair(s, model, [&ch[0], &ch[1]], &y, &zero, sink);
             for nd in 0..2 {
                 geometric(s, model, &ch[nd], y[nd], [0.0; 3], [0.0; 3], c.ck, sink);
             }
