@@ -28,6 +28,22 @@ pub const GAUSS4: [(f64, f64); 4] = [
     (0.930_568_155_797_026_3, 0.173_927_422_568_726_93),
 ];
 
+/// The position fields (a, b, c) at the Gauss points for node displacements `u1`, `u2`
+/// and node frames `t1`, `t2` in any scalar (only their derivatives are used, so node 1's
+/// displacement stands in for its position).
+#[inline]
+fn gauss_fields<R: Real>(
+    e: &ElemData,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+) -> [[[R; 3]; 3]; 4] {
+    let kin = kinematics(e.chord0, e.l0, u1, u2, t1, t2);
+    let chord = vadd(e.chord0.map(R::cst), vsub(u2, u1));
+    std::array::from_fn(|g| section_fields(&kin, u1, chord, GAUSS4[g].0))
+}
+
 /// Derivatives of the position fields (a, b, c) at the Gauss points along `da` (the `.a`
 /// part), and the mixed second derivative along (`da`, `db`) (the `.ab` part).
 pub(super) fn field_derivs(
@@ -38,15 +54,9 @@ pub(super) fn field_derivs(
     da: &Vec12,
     db: &Vec12,
 ) -> [[[HyperDual; 3]; 3]; 4] {
-    // only derivatives are used here, so node 1's displacement stands in for its position
-    let (kin, u1, u2) = kin_hd(e, s, t1, t2, da, db);
-    let c0 = e.chord0.map(HyperDual::cst);
-    let chord = vadd(c0, vsub(u2, u1));
-    let mut out = [[[HyperDual::default(); 3]; 3]; 4];
-    for (g, (xi, _)) in GAUSS4.iter().enumerate() {
-        out[g] = section_fields(&kin, u1, chord, *xi);
-    }
-    out
+    let (u1, tt1) = perturb(s.u1, t1, &da[0..6], &db[0..6]);
+    let (u2, tt2) = perturb(s.u2, t2, &da[6..12], &db[6..12]);
+    gauss_fields(e, u1, u2, &tt1, &tt2)
 }
 
 /// The position fields at the Gauss points as second-order jets along `v`: their `.dd`
@@ -61,14 +71,7 @@ pub(super) fn field_jets(
 ) -> [[[Jet2; 3]; 3]; 4] {
     let (u1, tt1) = perturb_jet(s.u1, t1, &v[0..6]);
     let (u2, tt2) = perturb_jet(s.u2, t2, &v[6..12]);
-    let kin = kinematics(e.chord0, e.l0, u1, u2, &tt1, &tt2);
-    let c0 = e.chord0.map(Jet2::cst);
-    let chord = vadd(c0, vsub(u2, u1));
-    let mut out = [[[Jet2::default(); 3]; 3]; 4];
-    for (g, (xi, _)) in GAUSS4.iter().enumerate() {
-        out[g] = section_fields(&kin, u1, chord, *xi);
-    }
-    out
+    gauss_fields(e, u1, u2, &tt1, &tt2)
 }
 
 /// μ-weights of the three position fields per unit length: ρA for a, ρI_z for b
