@@ -190,12 +190,22 @@ pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
 /// [`gradient`], [`internal_force`] and [`strain_energy`] (which would compute the frames
 /// and the kinematics again).
 pub(super) fn residual_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, f64) {
+    let (frames, g, _, f, u) = shared_parts(e, s);
+    (frames, g, f, u)
+}
+
+/// [`residual_parts`] with the energy's partials (moments, axial force) the tangent needs.
+#[allow(clippy::type_complexity)]
+fn shared_parts(
+    e: &ElemData,
+    s: &ElemState,
+) -> ((Mat3, Mat3), Grad<f64>, ([f64; 6], f64), Vec12, f64) {
     let (t1, t2) = node_frames(e, s);
     let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
     let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
     let f = force_from(&g, &m, n);
     let u = energy(&e.props, e.l0, &g.kin);
-    ((t1, t2), g, f, u)
+    ((t1, t2), g, (m, n), f, u)
 }
 
 /// [`internal_force_tangent`] and the strain energy (bit-identical to [`strain_energy`],
@@ -210,13 +220,9 @@ pub(super) fn tangent_parts(
     e: &ElemData,
     s: &ElemState,
 ) -> ((Mat3, Mat3), Grad<f64>, Vec12, Mat12, f64) {
-    let (t1, t2) = node_frames(e, s);
-    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
-    let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
-    let f = force_from(&g, &m, n);
+    let (frames, g, (m, n), f, u) = shared_parts(e, s);
     let k = tangent(&e.props, e.l0, &g, &m, n);
-    let u = energy(&e.props, e.l0, &g.kin);
-    ((t1, t2), g, f, k, u)
+    (frames, g, f, k, u)
 }
 
 /// K += a bᵀ over the rows `rows` (a indexed by row, b by column).

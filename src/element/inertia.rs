@@ -208,8 +208,7 @@ pub(super) struct FieldMaps<'g> {
 
 /// Shape-function values at Gauss point ξ: n1, n2 (Hermite, bending), d1, d2 (their
 /// derivatives), c0, c1 (linear, twist and chord).
-#[inline(always)]
-fn shapes(xi: f64) -> [f64; 6] {
+const fn shapes(xi: f64) -> [f64; 6] {
     [
         xi - 2.0 * xi * xi + xi * xi * xi,
         -xi * xi + xi * xi * xi,
@@ -220,14 +219,23 @@ fn shapes(xi: f64) -> [f64; 6] {
     ]
 }
 
+/// [`shapes`] at the four Gauss points, evaluated once at compile time (the same IEEE
+/// arithmetic as at run time, so the same values).
+const GAUSS_SHAPES: [[f64; 6]; 4] = [
+    shapes(GAUSS4[0].0),
+    shapes(GAUSS4[1].0),
+    shapes(GAUSS4[2].0),
+    shapes(GAUSS4[3].0),
+];
+
 impl<'g> FieldMaps<'g> {
     pub(super) fn new(g: &'g Grad<f64>) -> Self {
         let k = &g.kin;
         let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
         let mut r = [[[0.0; 3]; 3]; 4];
         let mut w = [[0.0; 2]; 4];
-        for (gp, (xi, _)) in GAUSS4.iter().enumerate() {
-            let [n1, n2, d1, d2, c0, c1] = shapes(*xi);
+        for (gp, sh) in GAUSS_SHAPES.iter().enumerate() {
+            let [n1, n2, d1, d2, c0, c1] = *sh;
             let wz = n1 * fz1 + n2 * fz2;
             let wy = n1 * fy1 + n2 * fy2;
             let thx = c0 * fx1 + c1 * fx2;
@@ -254,7 +262,7 @@ impl<'g> FieldMaps<'g> {
         let tc = &g.kin.tc;
         let len = g.kin.len;
         std::array::from_fn(|gp| {
-            let [n1, n2, d1, d2, c0, c1] = shapes(GAUSS4[gp].0);
+            let [n1, n2, d1, d2, c0, c1] = GAUSS_SHAPES[gp];
             let [wz, wy] = self.w[gp];
             let duy = l * wz + len * (n1 * ph[2] + n2 * ph[5]);
             let duz = -(l * wy + len * (n1 * ph[1] + n2 * ph[4]));
@@ -284,7 +292,7 @@ impl<'g> FieldMaps<'g> {
         let mut cl = 0.0;
         let (mut f1, mut f2) = ([0.0; 3], [0.0; 3]);
         for gp in 0..4 {
-            let [n1, n2, d1, d2, c0, c1] = shapes(GAUSS4[gp].0);
+            let [n1, n2, d1, d2, c0, c1] = GAUSS_SHAPES[gp];
             let [wz, wy] = self.w[gp];
             let [ya, yb, yc] = &y[gp];
             let [ra, rb, rc] = &self.r[gp];
@@ -342,11 +350,12 @@ pub(super) fn inertia_forces(
 ) -> InertiaForces {
     let maps = FieldMaps::new(g);
     let wf = field_weights(&e.props);
+    let w: [[f64; 3]; 4] =
+        std::array::from_fn(|gp| std::array::from_fn(|f| GAUSS4[gp].1 * wf[f] * e.l0));
     let weigh = |mut y: [[Vec3; 3]; 4]| {
-        for (gp, yg) in y.iter_mut().enumerate() {
-            for (f, yf) in yg.iter_mut().enumerate() {
-                let w = GAUSS4[gp].1 * wf[f] * e.l0;
-                yf.iter_mut().for_each(|x| *x *= w);
+        for (yg, wg) in y.iter_mut().zip(&w) {
+            for (yf, wf) in yg.iter_mut().zip(wg) {
+                yf.iter_mut().for_each(|x| *x *= wf);
             }
         }
         y
@@ -534,13 +543,8 @@ pub(super) fn field_rows_into<R: Real, S: RowSink<R>>(g: &Grad<R>, out: &mut S) 
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
     let len = k.len;
     let z = R::cst(0.0);
-    for (gp, (xi, _)) in GAUSS4.iter().enumerate() {
-        let xi = *xi;
-        let n1 = R::cst(xi - 2.0 * xi * xi + xi * xi * xi);
-        let n2 = R::cst(-xi * xi + xi * xi * xi);
-        let d1 = R::cst(1.0 - 4.0 * xi + 3.0 * xi * xi);
-        let d2 = R::cst(-2.0 * xi + 3.0 * xi * xi);
-        let (c0, c1) = (R::cst(1.0 - xi), R::cst(xi));
+    for (gp, sh) in GAUSS_SHAPES.iter().enumerate() {
+        let [n1, n2, d1, d2, c0, c1] = sh.map(R::cst);
         let wz = n1 * fz1 + n2 * fz2;
         let wy = n1 * fy1 + n2 * fy2;
         let uy = len * wz;
@@ -593,8 +597,8 @@ pub(super) fn field_rows_into<R: Real, S: RowSink<R>>(g: &Grad<R>, out: &mut S) 
             }
         }
         for c in 0..3 {
-            out.add_cst(9 * gp + c, c, 1.0 - xi);
-            out.add_cst(9 * gp + c, 6 + c, xi);
+            out.add_cst(9 * gp + c, c, sh[4]);
+            out.add_cst(9 * gp + c, 6 + c, sh[5]);
         }
     }
 }
