@@ -61,6 +61,11 @@ pub struct AssemblyTimes {
 /// Receives Jacobian entries by equation indices.
 pub trait Sink {
     fn add(&mut self, row: usize, col: usize, v: f64);
+    /// Whether the sink records where entries are rather than their values (then it
+    /// must see every entry, zero or not).
+    fn records_pattern(&self) -> bool {
+        false
+    }
 }
 
 /// Dense row-major n×n.
@@ -83,6 +88,9 @@ pub struct PatternSink {
 impl Sink for PatternSink {
     fn add(&mut self, row: usize, col: usize, _v: f64) {
         self.entries.push((row, col));
+    }
+    fn records_pattern(&self) -> bool {
+        true
     }
 }
 
@@ -721,6 +729,20 @@ fn scatter_block(
     a: &[[f64; 6]; 6],
     sk: &mut dyn Sink,
 ) {
+    if cha.is_unit_at(ya) && chb.is_unit_at(yb) {
+        // B_a = B_b = I: the same entries in the same order as below, without the products
+        for k in 0..6 {
+            let Some(ek) = active_eq(s, model, cha.cols[k].dof) else {
+                continue;
+            };
+            for l in 0..6 {
+                if let Some(el) = active_eq(s, model, chb.cols[l].dof) {
+                    sk.add(ek, el, a[k][l]);
+                }
+            }
+        }
+        return;
+    }
     // A·B_b columns first, then B_aᵀ rows
     let mut ab = [[0.0; 6]; joint::MAXCHAIN];
     for l in 0..chb.n {
@@ -758,6 +780,10 @@ fn geometric(
     ck: f64,
     sk: &mut dyn Sink,
 ) {
+    if ch.is_unit_at(y) && !sk.records_pattern() {
+        // every rotation axis passes through y and none turns: all its entries are zero
+        return;
+    }
     ch.geometric(y, f, m, |dk, dl, v| {
         if let (Some(ek), Some(el)) = (active_eq(s, model, dk), active_eq(s, model, dl)) {
             sk.add(ek, el, ck * v);

@@ -327,6 +327,22 @@ impl Chain {
         &self.cols[..self.n]
     }
 
+    /// Whether the columns at point y are the six unit twists of a free node in the order
+    /// x, y, z, rx, ry, rz with the rotation axes through y: the chain's projection is
+    /// then the identity, and the assembly's products with it reduce to copies (the
+    /// general products with exact zeros and ones give the same values).
+    #[inline]
+    pub fn is_unit_at(&self, y: Vec3) -> bool {
+        self.n == 6
+            && self.cols[..6].iter().enumerate().all(|(k, c)| {
+                let axis = k % 3;
+                c.rot == (k >= 3)
+                    && !c.moves
+                    && (0..3).all(|i| c.w[i] == if i == axis { 1.0 } else { 0.0 })
+                    && (!c.rot || c.p == y)
+            })
+    }
+
     /// Linear and angular parts of column k at point y.
     #[inline]
     pub fn twist(&self, k: usize, y: Vec3) -> (Vec3, Vec3) {
@@ -340,6 +356,10 @@ impl Chain {
 
     /// Velocity (linear at y, angular) for coordinate rates `v` (all dofs).
     pub fn velocity(&self, y: Vec3, v: &[f64]) -> (Vec3, Vec3) {
+        if self.is_unit_at(y) {
+            let d: [usize; 6] = std::array::from_fn(|k| self.cols[k].dof);
+            return ([v[d[0]], v[d[1]], v[d[2]]], [v[d[3]], v[d[4]], v[d[5]]]);
+        }
         let mut lin = [0.0; 3];
         let mut ang = [0.0; 3];
         for k in 0..self.n {
@@ -353,6 +373,10 @@ impl Chain {
 
     /// Σ_k q̇_k d/dt(column_k): the acceleration of y at zero coordinate accelerations.
     pub fn convective_acc(&self, y: Vec3, v: &[f64]) -> (Vec3, Vec3) {
+        if self.is_unit_at(y) {
+            // fixed directions and axes through y that move with it: no convective part
+            return ([0.0; 3], [0.0; 3]);
+        }
         let (ydot, _) = self.velocity(y, v);
         let mut lin = [0.0; 3];
         let mut ang = [0.0; 3];

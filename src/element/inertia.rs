@@ -349,17 +349,8 @@ pub(super) fn inertia_forces(
     acc: &Vec12,
 ) -> InertiaForces {
     let maps = FieldMaps::new(g);
-    let wf = field_weights(&e.props);
-    let w: [[f64; 3]; 4] =
-        std::array::from_fn(|gp| std::array::from_fn(|f| GAUSS4[gp].1 * wf[f] * e.l0));
-    let weigh = |mut y: [[Vec3; 3]; 4]| {
-        for (yg, wg) in y.iter_mut().zip(&w) {
-            for (yf, wf) in yg.iter_mut().zip(wg) {
-                yf.iter_mut().for_each(|x| *x *= wf);
-            }
-        }
-        y
-    };
+    let w = gauss_field_weights(e);
+    let weigh = |y| weigh_fields(&w, y);
     let ma = maps.project(&weigh(maps.apply(acc)));
     let moving = v.iter().any(|x| *x != 0.0);
     let (mv, sv) = if moving {
@@ -379,6 +370,31 @@ pub(super) fn inertia_forces(
         mv,
         s: sv,
     }
+}
+
+/// Gauss weight × field weight × L0 per (Gauss point, field).
+#[inline]
+fn gauss_field_weights(e: &ElemData) -> [[f64; 3]; 4] {
+    let wf = field_weights(&e.props);
+    std::array::from_fn(|gp| std::array::from_fn(|f| GAUSS4[gp].1 * wf[f] * e.l0))
+}
+
+#[inline]
+fn weigh_fields(w: &[[f64; 3]; 4], mut y: [[Vec3; 3]; 4]) -> [[Vec3; 3]; 4] {
+    for (yg, wg) in y.iter_mut().zip(w) {
+        for (yf, wf) in yg.iter_mut().zip(wg) {
+            yf.iter_mut().for_each(|x| *x *= wf);
+        }
+    }
+    y
+}
+
+/// M·x from the factored gradients, as [`inertia_forces`] forms M·acc (the same
+/// operations, so the same bits).
+pub(super) fn mass_times(e: &ElemData, g: &Grad<f64>, x: &Vec12) -> Vec12 {
+    let maps = FieldMaps::new(g);
+    let w = gauss_field_weights(e);
+    maps.project(&weigh_fields(&w, maps.apply(x)))
 }
 
 /// What the residual needs of an element's inertia: the inertial force M·acc + S and

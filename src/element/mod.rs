@@ -16,7 +16,7 @@ pub mod stage;
 pub use force::*;
 pub use inertia::*;
 pub use kinematics::*;
-pub use stage::{CpuEval, ElemIn, ElemOut, ElementEval, EvalError, EvalRequest};
+pub use stage::{memo_key, CpuEval, ElemIn, ElemOut, ElementEval, EvalError, EvalRequest};
 
 #[cfg(test)]
 mod tests;

@@ -489,6 +489,74 @@ fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() 
 }
 
 #[test]
+fn a_residual_at_unchanged_positions_and_velocities_reuses_forces_bit_for_bit() {
+    // the time-error estimate's mass products change only the accelerations: the stage
+    // then forms only M·acc, and every output must equal a fresh evaluation's
+    let mut rng = Lcg(11);
+    for case in 0..40 {
+        let (e, s) = random_case(&mut rng, 0.05);
+        let v12: Vec12 = std::array::from_fn(|_| if case % 4 == 0 { 0.0 } else { rng.next() });
+        let a1: Vec12 = std::array::from_fn(|_| 10.0 * rng.next());
+        let a2: Vec12 = std::array::from_fn(|_| 10.0 * rng.next());
+        let mut memo = ElemOut::default();
+        if case % 2 == 0 {
+            CpuEval::one(
+                &e,
+                &ElemIn {
+                    state: s,
+                    v12,
+                    acc: a1,
+                },
+                true,
+                &mut memo,
+            );
+        } else {
+            CpuEval::one_residual(
+                &e,
+                &ElemIn {
+                    state: s,
+                    v12,
+                    acc: a1,
+                },
+                true,
+                &mut memo,
+            );
+        }
+        let i2 = ElemIn {
+            state: s,
+            v12,
+            acc: a2,
+        };
+        assert_eq!(memo.forces_of, Some(memo_key(&i2)));
+        CpuEval::one_residual(&e, &i2, true, &mut memo);
+        let mut fresh = ElemOut::default();
+        CpuEval::one_residual(&e, &i2, true, &mut fresh);
+        assert_eq!(
+            (memo.f, memo.energy, memo.s, memo.finert, memo.mv),
+            (fresh.f, fresh.energy, fresh.s, fresh.finert, fresh.mv)
+        );
+        // a moved node, a changed velocity or no inertia is a fresh evaluation
+        let mut moved = i2;
+        moved.state.u2[0] += 1e-9;
+        let mut slow = i2;
+        slow.v12[3] += 1e-9;
+        for other in [moved, slow] {
+            let mut again = memo;
+            CpuEval::one_residual(&e, &other, true, &mut again);
+            let mut fresh = ElemOut::default();
+            CpuEval::one_residual(&e, &other, true, &mut fresh);
+            assert_eq!(
+                (again.f, again.s, again.finert),
+                (fresh.f, fresh.s, fresh.finert)
+            );
+        }
+        let mut statics = memo;
+        CpuEval::one_residual(&e, &i2, false, &mut statics);
+        assert_eq!((statics.finert, statics.forces_of), ([0.0; NDOF], None));
+    }
+}
+
+#[test]
 fn vector_lane_tangents_are_bit_identical_to_one_pass_per_column() {
     // the dual reference takes one vector-dual pass with 9 lanes (node 1's translation
     // columns are the negated node 2's); each lane must do exactly the arithmetic of its

@@ -172,6 +172,7 @@ macro_rules! impl_records {
                     o.mv[j] = r.mv[j].to();
                 }
                 o.energy = r.energy.to();
+                o.forces_of = None;
                 o.k = [[0.0; NDOF]; NDOF];
                 o.m = [[0.0; NDOF]; NDOF];
                 o.c = [[0.0; NDOF]; NDOF];
@@ -204,6 +205,7 @@ macro_rules! impl_records {
                     }
                 }
                 o.energy = f.energy.to();
+                o.forces_of = None;
                 match inertia {
                     Some(x) => {
                         for r in 0..NDOF {
