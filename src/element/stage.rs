@@ -47,15 +47,17 @@ pub struct ElemOut {
 /// The bits of an input's positions, frames and velocities.
 pub fn memo_key(i: &ElemIn) -> [u64; 36] {
     let s = &i.state;
-    let flat =
-        s.u1.iter()
-            .chain(s.r1.iter().flatten())
-            .chain(&s.u2)
-            .chain(s.r2.iter().flatten())
-            .chain(&i.v12);
     let mut k = [0u64; 36];
-    for (x, y) in k.iter_mut().zip(flat) {
-        *x = y.to_bits();
+    for c in 0..3 {
+        k[c] = s.u1[c].to_bits();
+        k[12 + c] = s.u2[c].to_bits();
+        for r in 0..3 {
+            k[3 + 3 * r + c] = s.r1[r][c].to_bits();
+            k[15 + 3 * r + c] = s.r2[r][c].to_bits();
+        }
+    }
+    for (x, v) in k[24..].iter_mut().zip(&i.v12) {
+        *x = v.to_bits();
     }
     k
 }
