@@ -66,6 +66,23 @@ pub trait Sink {
     fn records_pattern(&self) -> bool {
         false
     }
+    /// `a[k][l]` at (rows[k], cols[l]) for the present rows and columns, row by row: the
+    /// same entries in the same order as that many [`Sink::add`] calls, in one call.
+    fn add_block6(
+        &mut self,
+        rows: &[Option<usize>; 6],
+        cols: &[Option<usize>; 6],
+        a: &[[f64; 6]; 6],
+    ) {
+        for (r, ak) in rows.iter().zip(a) {
+            let Some(r) = *r else { continue };
+            for (c, v) in cols.iter().zip(ak) {
+                if let Some(c) = *c {
+                    self.add(r, c, *v);
+                }
+            }
+        }
+    }
 }
 
 /// Dense row-major n×n.
@@ -731,16 +748,9 @@ fn scatter_block(
 ) {
     if cha.is_unit_at(ya) && chb.is_unit_at(yb) {
         // B_a = B_b = I: the same entries in the same order as below, without the products
-        for k in 0..6 {
-            let Some(ek) = active_eq(s, model, cha.cols[k].dof) else {
-                continue;
-            };
-            for l in 0..6 {
-                if let Some(el) = active_eq(s, model, chb.cols[l].dof) {
-                    sk.add(ek, el, a[k][l]);
-                }
-            }
-        }
+        let rows = std::array::from_fn(|k| active_eq(s, model, cha.cols[k].dof));
+        let cols = std::array::from_fn(|l| active_eq(s, model, chb.cols[l].dof));
+        sk.add_block6(&rows, &cols, a);
         return;
     }
     // A·B_b columns first, then B_aᵀ rows
