@@ -1173,10 +1173,11 @@ fn lu_rows_in_place(
         }
         if p != k {
             let w = prof.end[k].max(prof.end[p]);
-            // both rows' multipliers (columns < k) move with them; past w both are zero
-            for j in 0..=w {
-                lu.swap(k * n + j, p * n + j);
-            }
+            // both rows' multipliers (columns < k) move with them; before the first
+            // multiplier and past w both are zero
+            let lo = prof.start[k].min(prof.start[p]).min(k);
+            let (upper, lower) = lu.split_at_mut(p * n);
+            upper[k * n + lo..=k * n + w].swap_with_slice(&mut lower[lo..=w]);
             perm.swap(k, p);
             prof.end.swap(k, p);
             prof.start.swap(k, p);
