@@ -431,9 +431,40 @@ pub fn eval(text: &str, params: &[(String, f64)]) -> Result<f64, String> {
     eval_in(text, &List(params))
 }
 
+/// Parsed expressions by text, per thread: a campaign compiles the same model file once
+/// per variant with other parameter values, and parsing was 2.5 % of a 40-step blade
+/// sweep's instructions. Errors are not kept (they are parsed again, the same error).
+/// Bounded: emptied when it reaches [`PARSED_CACHE_MAX`] entries.
+const PARSED_CACHE_MAX: usize = 4096;
+
+thread_local! {
+    static PARSED: std::cell::RefCell<std::collections::HashMap<String, Expr<f64>>> =
+        std::cell::RefCell::new(std::collections::HashMap::new());
+}
+
+/// `f` applied to the parsed `text`, from the thread's cache when it was parsed before.
+fn with_parsed<R>(text: &str, f: impl FnOnce(&Expr<f64>) -> R) -> Result<R, String> {
+    PARSED.with(|cache| {
+        if let Some(e) = cache.borrow().get(text) {
+            return Ok(f(e));
+        }
+        let expr = parse::<f64>(text)?;
+        let r = f(&expr);
+        let mut c = cache.borrow_mut();
+        if c.len() >= PARSED_CACHE_MAX {
+            c.clear();
+        }
+        c.insert(text.to_string(), expr);
+        Ok(r)
+    })
+}
+
 /// [`eval`] over any [`Scope`] (the compiler's hashed parameter table).
 pub fn eval_in(text: &str, params: &dyn Scope) -> Result<f64, String> {
-    let expr = parse::<f64>(text)?;
+    with_parsed(text, |expr| eval_parsed(text, expr, params))?
+}
+
+fn eval_parsed(text: &str, expr: &Expr<f64>, params: &dyn Scope) -> Result<f64, String> {
     let vals = expr
         .var_names()
         .iter()
