@@ -308,15 +308,17 @@ fn completed_rows(path: &Path) -> usize {
 #[test]
 fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted_shard() {
     let dir = scratch("resume_sigterm");
-    // 40 variants of ~0.1 s on one thread (test profile), a flush at most every 2 s:
-    // SIGTERM after the first flush lands mid-shard. `--batch 1`: variants end one by
-    // one (a batch's variants end together, so the first flush could come with the last)
+    // 40 variants of ~0.15 s on one thread, a flush at most every 2 s: SIGTERM after the
+    // first flush lands mid-shard. With t_end = 2 the shard took 1.56 s once the solver
+    // got faster and ended before its first flush, so t_end = 8 (about 6 s) keeps a
+    // margin of 3 over the flush interval. `--batch 1`: variants end one by one (a
+    // batch's variants end together, so the first flush could come with the last)
     let base = &[
         "models/rotating_cantilever.toml",
         "--vary",
         "omega=1:5:80",
         "--set",
-        "t_end=2",
+        "t_end=8",
     ];
     let whole = dir.join("whole.h5");
     let o = run(sweep(base, &["--shard", "1/2", "-o", s(&whole)]));
