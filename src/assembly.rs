@@ -67,7 +67,8 @@ pub trait Sink {
         false
     }
     /// `a[k][l]` at (rows[k], cols[l]) for the present rows and columns, row by row: the
-    /// same entries in the same order as that many [`Sink::add`] calls, in one call.
+    /// same entries in the same order as that many [`Sink::add`] calls, in one dynamic
+    /// call (each sink's copy of this body calls its own `add` statically).
     fn add_block6(
         &mut self,
         rows: &[Option<usize>; 6],

@@ -438,25 +438,31 @@ pub fn eval(text: &str, params: &[(String, f64)]) -> Result<f64, String> {
 const PARSED_CACHE_MAX: usize = 4096;
 
 thread_local! {
-    static PARSED: std::cell::RefCell<std::collections::HashMap<String, Expr<f64>>> =
+    static PARSED: std::cell::RefCell<std::collections::HashMap<String, std::rc::Rc<Expr<f64>>>> =
         std::cell::RefCell::new(std::collections::HashMap::new());
 }
 
 /// `f` applied to the parsed `text`, from the thread's cache when it was parsed before.
+/// No borrow of the cache is held while `f` runs (an `f` that evaluates another
+/// expression finds the cache free), and the parsed expression, a large value, is shared
+/// rather than moved.
 fn with_parsed<R>(text: &str, f: impl FnOnce(&Expr<f64>) -> R) -> Result<R, String> {
-    PARSED.with(|cache| {
-        if let Some(e) = cache.borrow().get(text) {
-            return Ok(f(e));
+    let cached = PARSED.with(|c| c.borrow().get(text).cloned());
+    let expr = match cached {
+        Some(e) => e,
+        None => {
+            let e = std::rc::Rc::new(parse::<f64>(text)?);
+            PARSED.with(|c| {
+                let mut c = c.borrow_mut();
+                if c.len() >= PARSED_CACHE_MAX {
+                    c.clear();
+                }
+                c.insert(text.to_string(), std::rc::Rc::clone(&e));
+            });
+            e
         }
-        let expr = parse::<f64>(text)?;
-        let r = f(&expr);
-        let mut c = cache.borrow_mut();
-        if c.len() >= PARSED_CACHE_MAX {
-            c.clear();
-        }
-        c.insert(text.to_string(), expr);
-        Ok(r)
-    })
+    };
+    Ok(f(&expr))
 }
 
 /// [`eval`] over any [`Scope`] (the compiler's hashed parameter table).

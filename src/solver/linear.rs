@@ -20,23 +20,6 @@ struct SparseSink<'a> {
     next: usize,
 }
 impl Sink for SparseSink<'_> {
-    fn add_block6(
-        &mut self,
-        rows: &[Option<usize>; 6],
-        cols: &[Option<usize>; 6],
-        a: &[[f64; 6]; 6],
-    ) {
-        // the trait's loop, with `add` inlined
-        for (r, ak) in rows.iter().zip(a) {
-            let Some(r) = *r else { continue };
-            for (c, v) in cols.iter().zip(ak) {
-                if let Some(c) = *c {
-                    self.add(r, c, *v);
-                }
-            }
-        }
-    }
-
     #[inline]
     fn add(&mut self, row: usize, col: usize, v: f64) {
         let i = self.next;
