@@ -103,7 +103,7 @@ fn main() {
         "internal_force:         {:.2} us/call   ({acc:.1})",
         dt * 1e6
     );
-    let [t_full, t_res, _t_mass_product] = stage_report(&e, &s, &v, &a);
+    let [t_full, t_res] = stage_report(&e, &s, &v, &a);
     flop_report(
         &e,
         &s,
@@ -114,7 +114,7 @@ fn main() {
 /// What a Newton iteration pays per element: the stage's full evaluation (force, K,
 /// energy, M, S, C and the inertial products) and its residual-only one, over a batch of
 /// ten elements as the blade has, outputs written in place.
-fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) -> [f64; 3] {
+fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) -> [f64; 2] {
     let ne = 10;
     let elems = vec![*e; ne];
     let inputs = vec![
@@ -160,7 +160,7 @@ fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) -> [f64; 3] {
             dt * 1e6
         );
     }
-    times
+    [times[0], times[1]]
 }
 
 // ---------------------------------------------------------------------------------------

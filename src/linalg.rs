@@ -597,21 +597,21 @@ impl DenseFactor {
             self.lu[i * n..=i * n + e].fill(0.0);
         }
         let (cp, ri) = (structure.col_ptr(), structure.row_idx());
-        let (q, qinv) = (&self.q, &self.qinv);
-        self.prof.reset((0..n).flat_map(|j| {
-            (cp[j]..cp[j + 1])
-                .filter(|&k| values[k] != 0.0)
-                .map(move |k| (qinv[ri[k]], qinv[j]))
-        }));
+        self.prof.clear();
         for j in 0..n {
+            let pj = self.qinv[j];
             for k in cp[j]..cp[j + 1] {
-                self.lu[qinv[ri[k]] * n + qinv[j]] = values[k];
+                let pi = self.qinv[ri[k]];
+                self.lu[pi * n + pj] = values[k];
+                if values[k] != 0.0 {
+                    self.prof.note(pi, pj);
+                }
             }
         }
         for (i, p) in self.perm.iter_mut().enumerate() {
             *p = i;
         }
-        lu_rows_in_place(&mut self.lu, n, &mut self.perm, &mut self.prof).map_err(|k| q[k])
+        lu_rows_in_place(&mut self.lu, n, &mut self.perm, &mut self.prof).map_err(|k| self.q[k])
     }
 
     /// Solve A x = b for the n-vector `b` in place.
@@ -1127,21 +1127,26 @@ impl Profile {
         }
     }
 
-    /// Reset for the matrix whose nonzeros are at (row, col) of `nonzeros`.
-    fn reset(&mut self, nonzeros: impl Iterator<Item = (usize, usize)>) {
+    /// Empty: no nonzero seen yet.
+    fn clear(&mut self) {
         let n = self.end.len();
         self.end.fill(0);
         self.start.fill(n);
         self.cend.fill(0);
-        for (i, j) in nonzeros {
-            self.end[i] = self.end[i].max(j);
-            self.cend[j] = self.cend[j].max(i);
-        }
+    }
+
+    /// A nonzero at (i, j) of the matrix about to be factored.
+    #[inline]
+    fn note(&mut self, i: usize, j: usize) {
+        self.end[i] = self.end[i].max(j);
+        self.cend[j] = self.cend[j].max(i);
     }
 
     fn of_dense(a: &[f64], n: usize) -> Profile {
         let mut p = Profile::new(n);
-        p.reset((0..n * n).filter(|&k| a[k] != 0.0).map(|k| (k / n, k % n)));
+        for (k, _) in a.iter().enumerate().filter(|(_, x)| **x != 0.0) {
+            p.note(k / n, k % n);
+        }
         p
     }
 }

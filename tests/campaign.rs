@@ -10,7 +10,6 @@ mod common;
 use common::assert_same_campaign;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::time::{Duration, Instant};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -294,17 +293,6 @@ fn spawn(mut c: Command) -> Child {
         .unwrap()
 }
 
-fn completed_rows(path: &Path) -> usize {
-    if !path.exists() {
-        return 0;
-    }
-    rust_hdf5::H5File::open(path)
-        .ok()
-        .and_then(|f| f.dataset("status/state").ok())
-        .and_then(|d| d.read_raw::<i32>().ok())
-        .map_or(0, |st| st.iter().filter(|&&x| x == 2).count())
-}
-
 #[test]
 fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted_shard() {
     let dir = scratch("resume_sigterm");
@@ -337,11 +325,9 @@ fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted
             s(&cut),
         ],
     ));
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while completed_rows(&cut) == 0 {
-        assert!(Instant::now() < deadline, "no flushed variant after 60 s");
-        std::thread::sleep(Duration::from_millis(25));
-    }
+    common::wait_until(60, "a flushed variant", || {
+        common::completed_variants(&cut) > 0
+    });
     let st = Command::new("kill")
         .args(["-s", "TERM", &child.id().to_string()])
         .status()
@@ -349,7 +335,7 @@ fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted
     assert!(st.success());
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
-    let done = completed_rows(&cut);
+    let done = common::completed_variants(&cut);
     assert!(
         done > 0 && done < 40,
         "stopped mid-shard: {done} of 40 completed"

@@ -1,6 +1,8 @@
 //! Ensembles: bit-identical to single runs, failure isolation, interruption, and the
 //! sweep command's checks.
 
+mod common;
+
 use latdyn::ensemble::{self, Campaign, Range};
 use latdyn::output::VariantState;
 use std::path::PathBuf;
@@ -195,21 +197,9 @@ fn sigint_leaves_a_valid_file_marked_interrupted() {
     // the file exists as soon as the campaign starts; wait until a finished variant has
     // been flushed (a fixed 4 s wait outlasted the whole 8-variant sweep once the solver
     // got faster: 3.5 s), with 40 variants of ~0.45 s left to interrupt
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    let flushed = || {
-        rust_hdf5::H5File::open(&path)
-            .ok()
-            .and_then(|f| f.dataset("status/state").ok())
-            .and_then(|d| d.read_raw::<i32>().ok())
-            .is_some_and(|st| st.contains(&2))
-    };
-    while !flushed() {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "no flushed variant after 60 s"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(25));
-    }
+    common::wait_until(60, "a flushed variant", || {
+        common::completed_variants(&path) > 0
+    });
     let st = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()

@@ -5,6 +5,8 @@
 //! test per class of the output defects of issue 15 (path refused before any work,
 //! symlinks, FIFOs, names, empty string lists, exit codes, panics).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -82,15 +84,6 @@ fn signal(child: &Child, sig: &str) {
         .status()
         .unwrap();
     assert!(st.success(), "kill -s {sig}");
-}
-
-/// Poll until `cond` holds (at most `secs`).
-fn wait_until(secs: u64, what: &str, mut cond: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(secs);
-    while !cond() {
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(25));
-    }
 }
 
 fn h5py_available() -> bool {
@@ -171,16 +164,6 @@ fn long_sweep(n: usize, out: &Path) -> Command {
     ])
 }
 
-/// The file exists and a flush after the first finished variant has happened.
-fn has_completed_variant(path: &Path) -> bool {
-    path.exists()
-        && rust_hdf5::H5File::open(path)
-            .ok()
-            .and_then(|f| f.dataset("status/state").ok())
-            .and_then(|d| d.read_raw::<i32>().ok())
-            .is_some_and(|st| st.contains(&2))
-}
-
 // ---------------------------------------------------------------- signals and kills
 
 #[test]
@@ -188,8 +171,8 @@ fn sigterm_mid_sweep_leaves_a_readable_file_marked_interrupted_and_exits_4() {
     let dir = scratch("sigterm_sweep");
     let path = dir.join("c.h5");
     let child = spawn(long_sweep(2000, &path));
-    wait_until(30, "a flushed completed variant", || {
-        has_completed_variant(&path)
+    common::wait_until(30, "a flushed completed variant", || {
+        common::completed_variants(&path) > 0
     });
     signal(&child, "TERM");
     let out = finish(child, 30);
@@ -213,7 +196,7 @@ fn sighup_stops_a_sweep_like_sigint() {
     let dir = scratch("sighup_sweep");
     let path = dir.join("c.h5");
     let child = spawn(long_sweep(2000, &path));
-    wait_until(30, "the campaign file", || path.exists());
+    common::wait_until(30, "the campaign file", || path.exists());
     signal(&child, "HUP");
     let out = finish(child, 30);
     assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
@@ -234,7 +217,7 @@ fn sigterm_mid_run_keeps_the_samples_so_far_marked_interrupted() {
             "-o",
             s(&path),
         ]));
-        wait_until(30, "the run's file", || path.exists());
+        common::wait_until(30, "the run's file", || path.exists());
         std::thread::sleep(Duration::from_millis(1500));
         signal(&child, "TERM");
         let out = finish(child, 30);
@@ -268,8 +251,8 @@ fn sigkill_mid_sweep_leaves_the_last_flush_valid_and_a_stale_lock_is_harmless() 
     let dir = scratch("sigkill_sweep");
     let path = dir.join("c.h5");
     let child = spawn(long_sweep(2000, &path));
-    wait_until(30, "a flushed completed variant", || {
-        has_completed_variant(&path)
+    common::wait_until(30, "a flushed completed variant", || {
+        common::completed_variants(&path) > 0
     });
     // SIGKILL: no handler runs, the atomic rename is all there is
     signal(&child, "KILL");
@@ -321,7 +304,7 @@ fn sigkill_mid_run_keeps_the_periodic_flush() {
         s(&path),
     ]));
     // the first file (all NaN) comes at once; wait for a flush with samples in it
-    wait_until(30, "a periodic flush with samples", || {
+    common::wait_until(30, "a periodic flush with samples", || {
         path.exists()
             && rust_hdf5::H5File::open(&path)
                 .ok()
@@ -346,7 +329,7 @@ fn a_second_writer_is_refused_naming_the_first_and_the_first_campaign_survives()
     let dir = scratch("two_writers");
     let path = dir.join("c.h5");
     let first = spawn(long_sweep(2000, &path));
-    wait_until(30, "the first campaign's file", || path.exists());
+    common::wait_until(30, "the first campaign's file", || path.exists());
     for (verb, extra) in [("sweep", true), ("run", false)] {
         let mut args = vec![verb, "models/rotating_cantilever.toml"];
         if extra {
@@ -390,8 +373,8 @@ fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5
     std::fs::create_dir_all(&sub).unwrap();
     let path = sub.join("c.h5");
     let child = spawn(long_sweep(2000, &path));
-    wait_until(30, "a flushed completed variant", || {
-        has_completed_variant(&path)
+    common::wait_until(30, "a flushed completed variant", || {
+        common::completed_variants(&path) > 0
     });
     std::fs::remove_dir_all(&sub).unwrap();
     // the next flush (≤ 2 s after the last one) fails; the sweep must stop there, long

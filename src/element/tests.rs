@@ -432,6 +432,14 @@ fn closed_form_force_tangent_and_mass_equal_the_hyper_dual_reference() {
     }
 }
 
+/// A deformed element with nodal velocities (zero when `at_rest`) and accelerations.
+fn random_motion(rng: &mut Lcg, at_rest: bool) -> (ElemData, ElemState, Vec12, Vec12) {
+    let (e, s) = random_case(rng, 0.05);
+    let v12: Vec12 = std::array::from_fn(|_| if at_rest { 0.0 } else { rng.next() });
+    let acc: Vec12 = std::array::from_fn(|_| 10.0 * rng.next());
+    (e, s, v12, acc)
+}
+
 #[test]
 fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() {
     // modified Newton mixes both evaluations within a step: they must agree exactly on
@@ -439,10 +447,8 @@ fn residual_only_evaluation_is_bit_identical_to_the_full_one_without_tangents() 
     // converged state would depend on when the Jacobian was refreshed
     let mut rng = Lcg(7);
     for case in 0..50 {
-        let (e, s) = random_case(&mut rng, 0.05);
         // every fifth case at rest: the full evaluation then takes the f64 path too
-        let v12: Vec12 = std::array::from_fn(|_| if case % 5 == 0 { 0.0 } else { rng.next() });
-        let acc: Vec12 = std::array::from_fn(|_| 10.0 * rng.next());
+        let (e, s, v12, acc) = random_motion(&mut rng, case % 5 == 0);
         let i = ElemIn { state: s, v12, acc };
         let (mut full, mut res) = (ElemOut::default(), ElemOut::default());
         // the matrices of an earlier evaluation, which a residual-only one leaves alone
@@ -494,9 +500,7 @@ fn a_residual_at_unchanged_positions_and_velocities_reuses_forces_bit_for_bit() 
     // then forms only M·acc, and every output must equal a fresh evaluation's
     let mut rng = Lcg(11);
     for case in 0..40 {
-        let (e, s) = random_case(&mut rng, 0.05);
-        let v12: Vec12 = std::array::from_fn(|_| if case % 4 == 0 { 0.0 } else { rng.next() });
-        let a1: Vec12 = std::array::from_fn(|_| 10.0 * rng.next());
+        let (e, s, v12, a1) = random_motion(&mut rng, case % 4 == 0);
         let a2: Vec12 = std::array::from_fn(|_| 10.0 * rng.next());
         let mut memo = ElemOut::default();
         if case % 2 == 0 {

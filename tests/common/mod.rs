@@ -126,3 +126,28 @@ pub fn assert_same_campaign(a: &Path, b: &Path) {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// Variants a campaign file marks completed (0 while the file does not exist or cannot be
+/// read yet, e.g. between a writer's flushes).
+pub fn completed_variants(path: &Path) -> usize {
+    if !path.exists() {
+        return 0;
+    }
+    rust_hdf5::H5File::open(path)
+        .ok()
+        .and_then(|f| f.dataset("status/state").ok())
+        .and_then(|d| d.read_raw::<i32>().ok())
+        .map_or(0, |st| st.iter().filter(|&&x| x == 2).count())
+}
+
+/// Poll until `cond` holds (at most `secs`).
+pub fn wait_until(secs: u64, what: &str, mut cond: impl FnMut() -> bool) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(secs);
+    while !cond() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "timed out waiting for {what}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(25));
+    }
+}
