@@ -86,6 +86,14 @@ pub(crate) fn install_panic_hook() {
 }
 
 fn main() -> ExitCode {
+    if let Some(missing) = missing_cpu_feature() {
+        let _ = writeln!(
+            std::io::stderr(),
+            "error: this latdyn was built for x86-64-v3 (.cargo/config.toml) and this CPU lacks \
+             {missing}; rebuild with RUSTFLAGS=\"-C target-cpu=x86-64\" (same numbers, slower)"
+        );
+        return ExitCode::from(EXIT_INTERNAL);
+    }
     install_panic_hook();
     let cli = Cli::parse();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -107,6 +115,24 @@ fn main() -> ExitCode {
         // the hook has printed the message and where
         Err(_) => ExitCode::from(EXIT_INTERNAL),
     }
+}
+
+/// The first vector feature the build was compiled for that this CPU lacks: such a binary
+/// would otherwise die of SIGILL somewhere in the first element evaluation, without a word.
+/// Checked first thing in `main`, before any engine code runs.
+fn missing_cpu_feature() -> Option<&'static str> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        macro_rules! need {
+            ($($f:tt),*) => {$(
+                if cfg!(target_feature = $f) && !std::is_x86_feature_detected!($f) {
+                    return Some($f);
+                }
+            )*};
+        }
+        need!("avx", "avx2", "fma", "bmi1", "bmi2", "lzcnt", "f16c", "movbe");
+    }
+    None
 }
 
 /// Fault injection for tests/output_faults.rs: `LATDYN_FAULT_PANIC=main` panics before
