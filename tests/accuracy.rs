@@ -144,11 +144,14 @@ fn the_estimate_is_within_a_factor_three_of_the_true_time_error() {
 }
 
 #[test]
-fn the_estimate_of_hinge_rates_is_within_a_factor_three_of_the_true_error() {
-    // The hinge sensors' error at a coarse step is mostly in the rate (the velocity part
-    // of the local error, c_v h³ a″). Truth: the same run at dt/16 (its own error 1/256 of
-    // the base run's). Measured: g1 estimate 0.215 vs 0.312, c1 0.193 vs 0.383; without
-    // the velocity part the estimate was 0.0036, 60× low.
+fn the_estimate_of_hinge_rates_does_not_under_read_where_the_step_misses_the_vibration() {
+    // At 10x its step the four-bar's hinge rates carry the cranks' vibration above 1/dt,
+    // and their error does not converge with dt (0.23-0.37 of the range from dt = 0.01 to
+    // 0.00125 against dt = 0.0003125): the estimate must say "large", not how large. The
+    // transported error of a vibration whose phase is lost grows past the truth (a linear
+    // estimate has no saturation); it is capped at twice the range. Measured: g1 0.99 vs
+    // 0.31, c1 1.13 vs 0.38. Hinge rates in a converging run are checked by the blade's
+    // flap angle above (its second component is the rate).
     let base = run_json(&["models/fourbar.toml", "--set", "v0=0.2", "--set", "dt=0.02"]);
     let fine = run_json(&[
         "models/fourbar.toml",
@@ -161,17 +164,87 @@ fn the_estimate_of_hinge_rates_is_within_a_factor_three_of_the_true_error() {
         let truth = history_error(&base, &fine, sensor);
         let est = base["time_error_by_sensor"][sensor].as_f64().unwrap();
         assert!(
-            est > truth / 3.0 && est < truth * 3.0,
+            est > truth / 3.0 && est <= 2.0 + 1e-12,
             "{sensor}: estimate {est:.3e}, true {truth:.3e}"
         );
     }
 }
 
 #[test]
+fn the_estimate_matches_the_closed_form_error_of_a_linear_oscillator() {
+    // The pendulum at 0.01 rad is a linear oscillator, θ = θ0 cos ωt, ω² = m g d / I:
+    // the transported error must be its error, not a bound (measured 0.985-0.990 of it at
+    // dt = 0.02 for each ρ∞; the small-angle model's own period error is 1 % of the time
+    // error here). The per-step sum it replaced read 0.6 of it.
+    let (m, d, ic, g, th0) = (2.0f64, 0.5f64, 0.01f64, 9.81f64, 0.01f64);
+    let w = (m * g * d / (ic + m * d * d)).sqrt();
+    for rho in ["0.6", "0.8", "1.0"] {
+        let rho_set = format!("rho_inf={rho}");
+        let v = run_json(&[
+            "models/pendulum.toml",
+            "--set",
+            "theta0=0.01",
+            "--set",
+            &rho_set,
+            "--set",
+            "dt=0.02",
+            "--set",
+            "t_end=5",
+        ]);
+        let s = &v["sensors"]["angle"];
+        let truth = s["t"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(s["values"].as_array().unwrap())
+            .map(|(t, y)| {
+                (y[4].as_f64().unwrap() - th0 * (w * t.as_f64().unwrap()).cos()).abs() / (2.0 * th0)
+            })
+            .fold(0.0f64, f64::max);
+        let est = v["time_error_by_sensor"]["angle"].as_f64().unwrap();
+        assert!(
+            est > 0.9 * truth && est < 1.1 * truth,
+            "rho_inf {rho}: estimate {est:.4e}, true {truth:.4e}"
+        );
+    }
+}
+
+#[test]
+fn the_spin_up_estimate_is_its_true_error_not_a_third_of_it() {
+    // The driven hub's rigid motion: the per-step sum had to leave its truncation error
+    // out and then read 0.25-0.33 of the truth; the transport carries it through the
+    // beam's dynamics. Truth: dt/8 (its own error 1/64). Measured at dt = 0.01: 2.26e-3
+    // against 2.00e-3 (t_end = 20); at 0.005 1.07, 0.0025 1.05.
+    let base = run_json(&[
+        "models/spinup_beam.toml",
+        "--set",
+        "dt=0.01",
+        "--set",
+        "t_end=12",
+    ]);
+    let fine = run_json(&[
+        "models/spinup_beam.toml",
+        "--set",
+        "dt=0.00125",
+        "--set",
+        "t_end=12",
+    ]);
+    let truth = history_error(&base, &fine, "tip_deflection") * 64.0 / 63.0;
+    let est = base["time_error_by_sensor"]["tip_deflection"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        est > 0.7 * truth && est < 1.5 * truth,
+        "estimate {est:.3e}, true {truth:.3e}"
+    );
+}
+
+#[test]
 fn accuracy_target_is_met_from_a_step_twenty_times_too_large() {
-    // pendulum released at 1 rad, first step 0.05 s (its fixed-step error there is 0.3):
-    // the controller must bring the history within the target; factor 3 of slack for
-    // the estimate's own error (measured true/target: 0.8, 1.2, 1.5)
+    // pendulum released at 1 rad, first step 0.05 s (its fixed-step error there is
+    // 0.036): the runs must bring the history within the target, judged against a
+    // reference 100x finer than the result's step; the estimate reads 0.94-0.99 of the
+    // truth on this model, so 10 % of slack on the truth
     let reference = run_json(&["models/pendulum.toml", "--set", "dt=1e-4"]);
     for acc in ["1e-2", "1e-3"] {
         let v = run_json(&[
@@ -184,15 +257,45 @@ fn accuracy_target_is_met_from_a_step_twenty_times_too_large() {
         let target: f64 = acc.parse().unwrap();
         let truth = history_error(&v, &reference, "angle");
         assert!(
-            truth < 3.0 * target,
+            truth < 1.1 * target,
             "accuracy {acc}: true error {truth:.3e}"
         );
-        assert!(
-            v["time_error_estimate"].as_f64().unwrap() <= 1.5 * target,
-            "{v}"
-        );
+        assert!(v["time_error_estimate"].as_f64().unwrap() <= target, "{v}");
         assert!(warnings(&v).is_empty(), "{:?}", warnings(&v));
+        assert!(
+            v["accuracy"]["runs"].as_u64().unwrap() <= 3,
+            "{}",
+            v["accuracy"]
+        );
     }
+}
+
+#[test]
+fn accuracy_on_the_spin_up_costs_at_most_the_cheapest_fixed_step_meeting_it_times_one_and_a_half() {
+    // Issue 14's cost bar. Fixed steps (t_end = 12, against dt = 0.00125): 0.02 is 1.7e-2
+    // off, 0.01 is 2e-3 off, so 0.01 (1200 steps) is the cheapest of the halving ladder
+    // that meets 1e-2. Measured: runs at 0.025 and 0.0125 s, 480 + 960 steps.
+    let fine = run_json(&[
+        "models/spinup_beam.toml",
+        "--set",
+        "dt=0.00125",
+        "--set",
+        "t_end=12",
+    ]);
+    let v = run_json(&[
+        "models/spinup_beam.toml",
+        "--set",
+        "dt=0.04",
+        "--set",
+        "t_end=12",
+        "--accuracy",
+        "1e-2",
+    ]);
+    let truth = history_error(&v, &fine, "tip_deflection");
+    assert!(truth < 1e-2, "true error {truth:.3e}");
+    let all = v["accuracy"]["steps_all_runs"].as_u64().unwrap();
+    assert!(all as f64 <= 1.5 * 1200.0, "{}", v["accuracy"]);
+    assert!(warnings(&v).is_empty(), "{:?}", warnings(&v));
 }
 
 #[test]

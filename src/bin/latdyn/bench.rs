@@ -879,10 +879,19 @@ fn time_error_ladder(
                         .warnings()
                         .iter()
                         .any(|w| w.contains("time step too large"));
-                    let mut line = format!(
-                        "time_error: {scene} dt {dt}{}: {} steps, {wall:.2} s",
-                        accuracy.map_or(String::new(), |a| format!(" accuracy {a}")),
+                    // an accuracy target's cost: the steps of every run it made
+                    let steps = if accuracy.is_some() {
+                        st.accuracy_steps
+                    } else {
                         st.steps
+                    };
+                    let mut line = format!(
+                        "time_error: {scene} dt {dt}{}: {steps} steps, {wall:.2} s",
+                        accuracy.map_or(String::new(), |a| format!(
+                            " accuracy {a} ({} runs, the result's step {:e} s)",
+                            st.accuracy_runs,
+                            st.accuracy_dt.unwrap_or(f64::NAN)
+                        )),
                     );
                     for ((&k, name), (pw, ex)) in idx.iter().zip(sensors).zip(errs) {
                         let est = st.time_error_by_sensor.get(k).copied().unwrap_or(f64::NAN);
@@ -894,7 +903,7 @@ fn time_error_ladder(
                             dt,
                             accuracy,
                             wall_s: wall,
-                            steps: st.steps,
+                            steps,
                             sensor: (*name).into(),
                             estimate: est,
                             true_pointwise: pw,
@@ -1190,11 +1199,12 @@ fn time_error_markdown(r: &BenchReport) -> String {
             match cheapest {
                 Some(f) => s.push_str(&format!(
                     "cheapest fixed step meeting {tol:e}: dt = {} s, {} steps, {:.3} s; cost \
-                     ratio {:.2}.\n\n",
+                     ratio {:.2} in wall time, {:.2} in steps.\n\n",
                     crate::plot::fmt_num(f.0),
                     f.2,
                     f.1,
-                    acc_run.1 / f.1
+                    acc_run.1 / f.1,
+                    acc_run.2 as f64 / f.2 as f64
                 )),
                 None => s.push_str(&format!("no fixed step of the ladder meets {tol:e}.\n\n")),
             }

@@ -209,6 +209,13 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
             },
             "energy_growth": stats.energy_growth,
             "energy_loss": stats.energy_loss,
+            "accuracy": m.solver.accuracy.map(|tol| serde_json::json!({
+                "target": tol,
+                "runs": stats.accuracy_runs,
+                "dt": stats.accuracy_dt,
+                "steps_all_runs": stats.accuracy_steps,
+                "newton_iterations_all_runs": stats.accuracy_newton_iterations,
+            })),
             "time_error_estimate": stats.time_error_estimate,
             "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
             "warnings": warnings,
@@ -225,6 +232,14 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
             "run {}: {} steps ({} rejected, {} Newton iterations) in {:.3} s",
             m.name, stats.steps, stats.rejected_steps, stats.newton_iterations, wall
         );
+        if let Some(tol) = m.solver.accuracy {
+            eprintln!(
+                "accuracy {tol:e}: {} run(s), {} steps in all; the result's step {:e} s",
+                stats.accuracy_runs,
+                stats.accuracy_steps,
+                stats.accuracy_dt.unwrap_or(f64::NAN)
+            );
+        }
     }
     let written = args
         .output
