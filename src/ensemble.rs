@@ -377,6 +377,10 @@ pub struct Outcome {
     pub steps: usize,
     pub rejected_steps: usize,
     pub newton_iterations: usize,
+    /// with an accuracy target: the runs made to meet it and their steps together (see
+    /// `RunStats::accuracy_runs`); 0 without
+    pub accuracy_runs: usize,
+    pub accuracy_steps: usize,
     /// from its batch's start to its end: the variants of a batch share one thread, so
     /// this includes the other variants' work until it ended
     pub wall_s: f64,
@@ -841,6 +845,8 @@ fn run_core(
             steps: stats.steps,
             rejected_steps: stats.rejected_steps,
             newton_iterations: stats.newton_iterations,
+            accuracy_runs: stats.accuracy_runs,
+            accuracy_steps: stats.accuracy_steps,
             wall_s: wall,
             times: stats.times,
             sensors: summaries,
@@ -998,6 +1004,8 @@ fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool) -> Outcome 
         steps: 0,
         rejected_steps: 0,
         newton_iterations: 0,
+        accuracy_runs: 0,
+        accuracy_steps: 0,
         wall_s: 0.0,
         times: StageTimes::default(),
         sensors: summarize(m, &dynamics::History::default()),

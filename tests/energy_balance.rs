@@ -50,7 +50,9 @@ fn spurious_growth_after_loads_end_is_flagged_on_a_free_beam_at_rho_inf_one() {
         "{:?}",
         good.energy_growth
     );
-    assert!(good.warnings().is_empty(), "{:?}", good.warnings());
+    // no energy warning; the time-error estimate does warn, rightly: the tip is 1.5 % of
+    // its range off the dt/16 run (estimate 2.1 %)
+    assert!(good.energy_warning().is_none(), "{:?}", good.warnings());
 }
 
 #[test]

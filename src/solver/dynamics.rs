@@ -119,11 +119,13 @@ const GLOBAL_ERROR_CAP: f64 = 2.0;
 ///
 /// The local error of a generalized-α step in the coordinates is, to leading order,
 /// e = h² (β − 1/6 + (α_m − α_f)/2) (ã_{n+1} − ã_n), with ã the auxiliary acceleration
-/// (ã_n ≈ a(t_n + (α_m − α_f) h); the Zienkiewicz-Xie estimator generalised to α_m, α_f).
-/// The coordinate error is mapped to every sensor by sampling it at the state moved by
-/// e (rotations through the exponential map, i.e. measured in the Lie algebra), so each
-/// sensor sees the error in its own units; the step errors are accumulated without
-/// cancellation and divided by the sensor's range over the run.
+/// (ã_n ≈ a(t_n + (α_m − α_f) h); the Zienkiewicz-Xie estimator generalised to α_m, α_f),
+/// and in the velocities c_v h³ a″ (`local_error`). The global error is carried from
+/// step to step by the linearised step (`transport_error`), which also filters the local
+/// error's stiff part, and mapped to every sensor by sampling it at the state moved by
+/// the global error (rotations through the exponential map, i.e. measured in the Lie
+/// algebra), so each sensor sees the error in its own units; the largest deviation over
+/// the run is divided by the sensor's range over the run.
 struct TimeError {
     /// per sensor, per component: the largest |δy| of the global error so far
     acc: Vec<Vec<f64>>,
@@ -1109,14 +1111,14 @@ impl<'m> Integrator<'m> {
         stop: Option<&std::sync::atomic::AtomicBool>,
     ) -> Result<(), DynamicsError> {
         let dt_nominal = self.model.solver.dt;
-        let adaptive = self.model.solver.accuracy.is_some();
+        let locate_locks = self.model.solver.accuracy.is_some();
         while self.s.t < t_target - 1e-12 * t_target.abs().max(1.0) {
             if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) {
                 return Err(DynamicsError::Interrupted { t: self.s.t });
             }
             let remaining = t_target - self.s.t;
             let mut h = self.h.min(remaining);
-            if adaptive {
+            if locate_locks {
                 // a hinge lock time is a grid point too
                 for hg in &self.model.hinges {
                     if let Some(tl) = hg.lock_time {

@@ -285,8 +285,9 @@ pub(crate) struct SweepArgs {
     /// run only the K-th of N interleaved subsets of the variants: K/N
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
     pub(crate) shard: Option<(usize, usize)>,
-    /// adaptive time steps meeting this relative local error (overrides `[solver]
-    /// accuracy`; `dt` becomes the first step, `dt_max` the largest)
+    /// global error control: fixed-step runs at smaller steps until the estimated time
+    /// error is at most TOL of each sensor's range (overrides `[solver] accuracy`; `dt`
+    /// is the first run's step, `dt_max` the largest, `dt_min` the smallest)
     #[arg(long, value_name = "TOL", value_parser = parse_accuracy)]
     pub(crate) accuracy: Option<f64>,
     /// sensor (SENSOR or SENSOR.COMPONENT) whose dominant frequency is reported as
@@ -369,8 +370,9 @@ pub(crate) struct RunArgs {
     pub(crate) output: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) backend: BackendArgs,
-    /// adaptive time steps meeting this relative local error (overrides `[solver]
-    /// accuracy`; `dt` becomes the first step, `dt_max` the largest)
+    /// global error control: fixed-step runs at smaller steps until the estimated time
+    /// error is at most TOL of each sensor's range (overrides `[solver] accuracy`; `dt`
+    /// is the first run's step, `dt_max` the largest, `dt_min` the smallest)
     #[arg(long, value_name = "TOL", value_parser = parse_accuracy)]
     pub(crate) accuracy: Option<f64>,
 }

@@ -413,6 +413,8 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "message": o.message,
                     "steps": o.steps,
                     "rejected_steps": o.rejected_steps,
+                    "accuracy_runs": o.accuracy_runs,
+                    "accuracy_steps_all_runs": o.accuracy_steps,
                     "wall_s": o.wall_s,
                     "energy_growth": o.energy_growth,
                     "energy_loss": o.energy_loss,
