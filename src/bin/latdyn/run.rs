@@ -215,6 +215,9 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 "dt": stats.accuracy_dt,
                 "steps_all_runs": stats.accuracy_steps,
                 "newton_iterations_all_runs": stats.accuracy_newton_iterations,
+                "history": stats.accuracy_history.iter().map(|(dt, e, n)| serde_json::json!({
+                    "dt": dt, "estimate": e, "steps": n,
+                })).collect::<Vec<_>>(),
             })),
             "time_error_estimate": stats.time_error_estimate,
             "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
@@ -239,6 +242,9 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 stats.accuracy_steps,
                 stats.accuracy_dt.unwrap_or(f64::NAN)
             );
+            for (dt, e, n) in &stats.accuracy_history {
+                eprintln!("  dt {dt:e} s: {n} steps, estimate {e:.3e}");
+            }
         }
     }
     let written = args
