@@ -149,8 +149,9 @@ fn the_estimate_of_hinge_rates_does_not_under_read_where_the_step_misses_the_vib
     // and their error does not converge with dt (0.23-0.37 of the range from dt = 0.01 to
     // 0.00125 against dt = 0.0003125): the estimate must say "large", not how large. The
     // transported error of a vibration whose phase is lost grows past the truth (a linear
-    // estimate has no saturation); it is capped at twice the range. Measured: g1 0.99 vs
-    // 0.31, c1 1.13 vs 0.38. Hinge rates in a converging run are checked by the blade's
+    // estimate has no saturation, and the transport's step matrix is not the exact
+    // linearisation); it is capped at twice the range. Measured: g1 and c1 at the cap, 2,
+    // against 0.31 and 0.38. Hinge rates in a converging run are checked by the blade's
     // flap angle above (its second component is the rate).
     let base = run_json(&["models/fourbar.toml", "--set", "v0=0.2", "--set", "dt=0.02"]);
     let fine = run_json(&[
