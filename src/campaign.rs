@@ -940,8 +940,8 @@ pub struct Probe {
 
 /// Run the variants `indices` of `c` from 0 to `fraction` / 2 and `fraction` × t_end on
 /// one CPU thread and time them: the cost per variant of the campaign, extrapolated
-/// linearly in the simulated time (exact for fixed steps; with `--accuracy` the step may change later in
-/// the run). Each probe runs the sweep's own code path, so a variant that fails early
+/// linearly in the simulated time (exact for fixed steps; with `--accuracy` the runs the
+/// target needs over the short span may differ from those over the whole run). Each probe runs the sweep's own code path, so a variant that fails early
 /// says so here.
 pub fn probe(
     c: &crate::ensemble::Campaign,
