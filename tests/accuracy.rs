@@ -210,6 +210,21 @@ fn the_estimate_matches_the_closed_form_error_of_a_linear_oscillator() {
     }
 }
 
+/// The spin-up beam over 12 s at dt = 0.00125 (1/8 of the step the tests below compare),
+/// run once for them all.
+fn spin_up_reference() -> &'static Value {
+    static REFERENCE: std::sync::OnceLock<Value> = std::sync::OnceLock::new();
+    REFERENCE.get_or_init(|| {
+        run_json(&[
+            "models/spinup_beam.toml",
+            "--set",
+            "dt=0.00125",
+            "--set",
+            "t_end=12",
+        ])
+    })
+}
+
 #[test]
 fn the_spin_up_estimate_is_its_true_error_not_a_third_of_it() {
     // The driven hub's rigid motion: the per-step sum had to leave its truncation error
@@ -223,14 +238,7 @@ fn the_spin_up_estimate_is_its_true_error_not_a_third_of_it() {
         "--set",
         "t_end=12",
     ]);
-    let fine = run_json(&[
-        "models/spinup_beam.toml",
-        "--set",
-        "dt=0.00125",
-        "--set",
-        "t_end=12",
-    ]);
-    let truth = history_error(&base, &fine, "tip_deflection") * 64.0 / 63.0;
+    let truth = history_error(&base, spin_up_reference(), "tip_deflection") * 64.0 / 63.0;
     let est = base["time_error_by_sensor"]["tip_deflection"]
         .as_f64()
         .unwrap();
@@ -276,13 +284,6 @@ fn accuracy_on_the_spin_up_costs_at_most_the_cheapest_fixed_step_meeting_it_time
     // Issue 14's cost bar. Fixed steps (t_end = 12, against dt = 0.00125): 0.02 is 1.7e-2
     // off, 0.01 is 2e-3 off, so 0.01 (1200 steps) is the cheapest of the halving ladder
     // that meets 1e-2. Measured: runs at 0.025 and 0.0125 s, 480 + 960 steps.
-    let fine = run_json(&[
-        "models/spinup_beam.toml",
-        "--set",
-        "dt=0.00125",
-        "--set",
-        "t_end=12",
-    ]);
     let v = run_json(&[
         "models/spinup_beam.toml",
         "--set",
@@ -292,7 +293,7 @@ fn accuracy_on_the_spin_up_costs_at_most_the_cheapest_fixed_step_meeting_it_time
         "--accuracy",
         "1e-2",
     ]);
-    let truth = history_error(&v, &fine, "tip_deflection");
+    let truth = history_error(&v, spin_up_reference(), "tip_deflection");
     assert!(truth < 1e-2, "true error {truth:.3e}");
     let all = v["accuracy"]["steps_all_runs"].as_u64().unwrap();
     assert!(all as f64 <= 1.5 * 1200.0, "{}", v["accuracy"]);
