@@ -343,6 +343,16 @@ impl RunStats {
     /// unstable ones first).
     pub const ENERGY_LOSS_LIMIT: f64 = 1e-2;
 
+    /// The sensor (model order) with the largest time-error estimate, and that estimate.
+    pub fn worst_time_error(&self) -> Option<(usize, f64)> {
+        self.time_error_by_sensor
+            .iter()
+            .copied()
+            .enumerate()
+            .filter(|(_, x)| x.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// Every warning about this run's numbers, each naming its likely cause.
     pub fn warnings(&self) -> Vec<String> {
         let mut w: Vec<String> = self.energy_warning().into_iter().collect();
@@ -1190,24 +1200,14 @@ impl<'m> Integrator<'m> {
         let mut st = self.stats.clone();
         st.times.add(&self.sys.times);
         st.time_error_by_sensor = self.te.by_sensor();
-        st.time_error_estimate = st
-            .time_error_by_sensor
-            .iter()
-            .copied()
-            .filter(|x| x.is_finite())
-            .reduce(f64::max);
+        let worst = st.worst_time_error();
+        st.time_error_estimate = worst.map(|(_, e)| e);
         // with an accuracy target, `run_accuracy` says whether it was met
         let limit = match self.model.solver.accuracy {
             Some(_) => f64::INFINITY,
             None => TIME_ERROR_WARN,
         };
-        let worst = st
-            .time_error_by_sensor
-            .iter()
-            .enumerate()
-            .filter(|(_, x)| x.is_finite())
-            .max_by(|a, b| a.1.total_cmp(b.1));
-        if let Some((k, &e)) = worst.filter(|(_, e)| **e > limit) {
+        if let Some((k, e)) = worst.filter(|(_, e)| *e > limit) {
             st.notes.push(format!(
                 "time step too large for the frequencies present: the estimated \
                  time-discretisation error of sensor `{}` is {:.2} % of its range (limit {} %); \
@@ -1394,15 +1394,9 @@ async fn run_accuracy(
         if runs >= ACCURACY_MAX_RUNS || at_floor || stuck || (r.2.is_some() && runs > 1) {
             let mut r = r;
             if r.2.is_none() {
-                let worst =
-                    r.1.time_error_by_sensor
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, x)| x.is_finite())
-                        .max_by(|a, b| a.1.total_cmp(b.1))
-                        .map_or(String::new(), |(k, _)| {
-                            format!(" `{}`", model.sensors[k].name)
-                        });
+                let worst = r.1.worst_time_error().map_or(String::new(), |(k, _)| {
+                    format!(" `{}`", model.sensors[k].name)
+                });
                 let why = if at_floor {
                     ", the smallest step dt_min"
                 } else if stuck {
