@@ -309,3 +309,33 @@ fn accuracy_out_of_range_is_a_usage_error() {
         assert!(String::from_utf8_lossy(&out.stderr).contains("--accuracy"));
     }
 }
+
+#[test]
+fn a_step_that_does_not_divide_the_output_interval_is_spread_evenly_not_ended_by_a_sliver() {
+    // dt = 0.00111111111 leaves 1e-11 s of each 0.01 s output interval: taken as a step
+    // of its own, that sliver (step ratio 1e-8) quadrupled the blade's true flap error and
+    // sent every sensor's time-error estimate to the cap (2.0, measured before the fix).
+    // Spread evenly, the run is the run at dt = 0.01/9 up to round-off.
+    let common = ["models/flapping_blade.toml", "--set", "t_end=2", "--set"];
+    let mut sliver = common.to_vec();
+    sliver.push("dt=0.00111111111");
+    let mut even = common.to_vec();
+    even.push("dt=0.0011111111111111111");
+    let (a, b) = (run_json(&sliver), run_json(&even));
+    assert_eq!(a["steps"], b["steps"]);
+    for sensor in ["flap_angle", "mid_moment", "tip"] {
+        let diff = history_error(&a, &b, sensor);
+        assert!(
+            diff < 1e-6,
+            "{sensor}: samples differ by {diff:.2e} of the range"
+        );
+        let (ea, eb) = (
+            a["time_error_by_sensor"][sensor].as_f64().unwrap(),
+            b["time_error_by_sensor"][sensor].as_f64().unwrap(),
+        );
+        assert!(
+            (ea - eb).abs() <= 1e-4 * eb,
+            "{sensor}: estimate {ea:.4e} against {eb:.4e}"
+        );
+    }
+}
