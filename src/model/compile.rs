@@ -1906,7 +1906,7 @@ impl Compiler<'_> {
             field,
             limits::exceeded(
                 &format!(
-                    "values to keep for the output, {} samples (t_end {} / interval {dt_out}) × \
+                    "values to keep for the output, {} samples (t_end {:e} / interval {dt_out:e}) × \
                      ({components} sensor components + time)",
                     limits::count(samples),
                     s.t_end

@@ -407,6 +407,10 @@ pub fn worst_dof(model: &Model, r: &[f64]) -> (String, f64) {
     let mut best = (String::from("?"), 0.0);
     for d in &model.dofs {
         if let Some(e) = d.eq {
+            // a NaN compares false with everything: name the first non-finite entry
+            if !r[e].is_finite() {
+                return (d.name.clone(), r[e]);
+            }
             if r[e].abs() >= best.1 {
                 best = (d.name.clone(), r[e].abs());
             }
