@@ -1549,3 +1549,62 @@ async fn run_fixed(
     }
     (hist, stats, failure)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::spread_evenly;
+
+    /// The steps `advance` takes from t0 to t0 + interval at step h.
+    fn steps(h: f64, t0: f64, interval: f64) -> Vec<f64> {
+        let target = t0 + interval;
+        let mut t = t0;
+        let mut out = Vec::new();
+        while t < target - 1e-12 * target.abs().max(1.0) {
+            let remaining = target - t;
+            let s = spread_evenly(h.min(remaining), remaining, target);
+            out.push(s);
+            t += s;
+        }
+        out
+    }
+
+    #[test]
+    fn a_dividing_step_is_kept_bit_for_bit() {
+        for (h, t0, interval) in [(0.005, 9.99, 0.01), (1e-3, 0.37, 0.01), (0.05, 19.95, 0.05)] {
+            let s = steps(h, t0, interval);
+            let n = (interval / h).round() as usize;
+            assert_eq!(s.len(), n, "{h} in {interval} at {t0}: {s:?}");
+            // every step but the last (which lands on the grid) is h itself
+            assert!(s[..n - 1].iter().all(|x| *x == h), "{s:?}");
+            assert!((s[n - 1] - h).abs() < 1e-9 * h, "{s:?}");
+        }
+    }
+
+    #[test]
+    fn a_step_that_does_not_divide_is_spread_over_the_fewest_equal_steps() {
+        // (h, interval, steps): the remainder a plain min(h, remaining) would leave
+        // was 1e-11 s, 0.001 s, 0.01 s, 4e-12 s
+        for (h, interval, n) in [
+            (0.00111111111, 0.01, 9),
+            (0.004, 0.005, 2),
+            (0.04, 0.05, 2),
+            (0.000833333333, 0.01, 12),
+            (0.0011, 0.01, 10),
+            (0.3, 1.0, 4),
+        ] {
+            let s = steps(h, 2.0, interval);
+            assert_eq!(s.len(), n, "{h} in {interval}: {s:?}");
+            let (lo, hi) = s
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(*x), b.max(*x)));
+            assert!(hi <= h * (1.0 + 1e-6), "{h}: {s:?}");
+            assert!(hi - lo <= 1e-9 * hi, "{h}: uneven {s:?}");
+            // short of the interval by at most the landing tolerance (2e-12 at t = 2)
+            let sum: f64 = s.iter().sum();
+            assert!(
+                (sum - interval).abs() < 3e-12,
+                "{h}: {sum} against {interval}"
+            );
+        }
+    }
+}
