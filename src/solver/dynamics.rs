@@ -1125,13 +1125,20 @@ impl<'m> Integrator<'m> {
     ) -> Result<(), DynamicsError> {
         let dt_nominal = self.model.solver.dt;
         let locate_locks = self.model.solver.accuracy.is_some();
+        // Where dt divides the output interval, steps are dt or its halvings after a
+        // failed step and always land on the grid: kept as they were (bit-identical
+        // campaigns). Else, and where lock landings and retries cut steps, the rest of
+        // the interval is spread evenly.
+        let spread = locate_locks || spread_step(self.model).is_some();
         while self.s.t < t_target - 1e-12 * t_target.abs().max(1.0) {
             if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) {
                 return Err(DynamicsError::Interrupted { t: self.s.t });
             }
             let remaining = t_target - self.s.t;
             let mut h = self.h.min(remaining);
-            h = spread_evenly(h, remaining, t_target);
+            if spread {
+                h = spread_evenly(h, remaining, t_target);
+            }
             if locate_locks {
                 // a hinge lock time is a grid point too
                 for hg in &self.model.hinges {
@@ -1350,6 +1357,18 @@ fn spread_evenly(h: f64, remaining: f64, t_target: f64) -> f64 {
     }
     // a ratio a hair above an integer is that integer (the step grows by at most 1e-6)
     remaining / (remaining / h * (1.0 - 1e-6)).ceil()
+}
+
+/// Where the model's fixed step does not divide its output interval: the steps per
+/// interval and their size as [`spread_evenly`] takes them (one step of the interval where
+/// dt exceeds it); `None` where dt divides it or there is no output interval.
+pub fn spread_step(model: &Model) -> Option<(usize, f64)> {
+    let s = &model.solver;
+    if s.output_dt <= 0.0 {
+        return None;
+    }
+    let h = spread_evenly(s.dt.min(s.output_dt), s.output_dt, s.output_dt);
+    (h != s.dt).then(|| ((s.output_dt / h).round() as usize, h))
 }
 
 /// A step no larger than `h` that divides the output interval evenly (the output grid

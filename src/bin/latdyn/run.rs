@@ -99,6 +99,15 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     if args.accuracy.is_some() {
         m.solver.accuracy = args.accuracy;
     }
+    if m.solver.accuracy.is_none() {
+        if let Some((n, h)) = latdyn::solver::dynamics::spread_step(&m) {
+            eprintln!(
+                "note: {}: dt = {:e} s does not divide the output interval {:e} s; each \
+                 interval is {n} equal step(s) of {h:e} s",
+                m.path, m.solver.dt, m.solver.output_dt
+            );
+        }
+    }
     let target = args.output.as_deref().map(claim_output).transpose()?;
     let (stage, _gpu) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
     let mut sink = match target {
