@@ -323,6 +323,16 @@ fn a_step_that_does_not_divide_the_output_interval_is_spread_evenly_not_ended_by
     even.push("dt=0.0011111111111111111");
     let (a, b) = (run_json(&sliver), run_json(&even));
     assert_eq!(a["steps"], b["steps"]);
+    // the user is told, on stderr (stdout stays the JSON object)
+    let mut args = vec!["run"];
+    args.extend_from_slice(&sliver);
+    args.push("--json");
+    let out = latdyn(&args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("does not divide the output interval") && err.contains("9 equal step(s)"),
+        "{err}"
+    );
     for sensor in ["flap_angle", "mid_moment", "tip"] {
         let diff = history_error(&a, &b, sensor);
         assert!(

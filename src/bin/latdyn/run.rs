@@ -103,7 +103,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         if let Some((n, h)) = latdyn::solver::dynamics::spread_step(&m) {
             eprintln!(
                 "note: {}: dt = {:e} s does not divide the output interval {:e} s; each \
-                 interval is {n} equal step(s) of {h:e} s",
+                 interval is {n} equal step(s) of {h:.6e} s",
                 m.path, m.solver.dt, m.solver.output_dt
             );
         }
