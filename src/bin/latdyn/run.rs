@@ -92,6 +92,21 @@ impl RunSink {
     }
 }
 
+/// The stderr note for a fixed step that does not divide the output interval (the run
+/// spreads it evenly, `dynamics::spread_step`); `None` with an accuracy target, whose runs
+/// choose their own dividing steps.
+pub(crate) fn spread_note(m: &latdyn::model::Model) -> Option<String> {
+    if m.solver.accuracy.is_some() {
+        return None;
+    }
+    let (n, h) = latdyn::solver::dynamics::spread_step(m)?;
+    Some(format!(
+        "note: {}: dt = {:e} s does not divide the output interval {:e} s; each interval \
+         is {n} equal step(s) of {h:.6e} s",
+        m.path, m.solver.dt, m.solver.output_dt
+    ))
+}
+
 pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     use latdyn::output::{VariantState, VariantStatus};
     use std::sync::atomic::Ordering;
@@ -99,14 +114,8 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     if args.accuracy.is_some() {
         m.solver.accuracy = args.accuracy;
     }
-    if m.solver.accuracy.is_none() {
-        if let Some((n, h)) = latdyn::solver::dynamics::spread_step(&m) {
-            eprintln!(
-                "note: {}: dt = {:e} s does not divide the output interval {:e} s; each \
-                 interval is {n} equal step(s) of {h:.6e} s",
-                m.path, m.solver.dt, m.solver.output_dt
-            );
-        }
+    if let Some(note) = spread_note(&m) {
+        eprintln!("{note}");
     }
     let target = args.output.as_deref().map(claim_output).transpose()?;
     let (stage, _gpu) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;

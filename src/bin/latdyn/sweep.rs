@@ -149,17 +149,14 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         .map(|n| n.get())
         .unwrap_or(1);
     // the element count decides `auto`; the model is compiled again per variant later
-    let base_model = args.model.load()?;
+    let mut base_model = args.model.load()?;
     let n_elem = base_model.elements.len();
-    if args.accuracy.is_none() && base_model.solver.accuracy.is_none() {
-        if let Some((n, h)) = latdyn::solver::dynamics::spread_step(&base_model) {
-            eprintln!(
-                "note: {}: dt = {:e} s does not divide the output interval {:e} s; each \
-                 interval is {n} equal step(s) of {h:.6e} s (the base model; a variant \
-                 whose own dt does not divide its interval is spread the same way)",
-                base_model.path, base_model.solver.dt, base_model.solver.output_dt
-            );
-        }
+    base_model.solver.accuracy = args.accuracy.or(base_model.solver.accuracy);
+    if let Some(note) = crate::run::spread_note(&base_model) {
+        eprintln!(
+            "{note} (the base model; a variant whose own dt does not divide its interval is \
+             spread the same way)"
+        );
     }
     // before compiling the variants: a refused path costs nothing
     let mut target = args
