@@ -73,11 +73,10 @@ fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
             vec!["dt=0.05", "t_end=16"],
             &["tip_deflection"],
         ),
-        (
-            "models/rotating_cantilever.toml",
-            vec!["dt=0.1"],
-            &["root_moment"],
-        ),
+        // the smooth 0.05 s tip pulse falls between the steps' ends at dt = 0.1: the run
+        // sees no load at all, its response and so its time-error estimate are 0, and the
+        // warning is the missed impulse's, naming the load's node
+        ("models/rotating_cantilever.toml", vec!["dt=0.1"], &["tip"]),
         (
             "models/rotating_cantilever.toml",
             vec!["omega=20", "t_end=3"],
@@ -105,7 +104,11 @@ fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
                 && sensor.iter().any(|s| w.contains(&format!("`{s}`")))),
             "{model} {sets:?}: {w:?}"
         );
-        assert!(v["time_error_estimate"].as_f64().unwrap() > 1e-2, "{v}");
+        let missed_load = w.iter().any(|w| w.contains("too large for the loads"));
+        assert!(
+            v["time_error_estimate"].as_f64().unwrap() > 1e-2 || missed_load,
+            "{v}"
+        );
     }
 }
 
@@ -348,4 +351,80 @@ fn a_step_that_does_not_divide_the_output_interval_is_spread_evenly_not_ended_by
             "{sensor}: estimate {ea:.4e} against {eb:.4e}"
         );
     }
+}
+
+#[test]
+fn the_rotating_cantilever_at_high_speed_converges_under_accuracy_control_from_the_shipped_step() {
+    // Issue 14: at Ω̄ = 20 the shipped step read the tip peak 17× and the root moment peak
+    // 160× low. `--accuracy 1e-2` from the shipped dt = 0.01, no step chosen by hand,
+    // against a fixed step of 3.9e-5 s (itself within 7.4e-4 of a run at half of it,
+    // measured). Measured over 4 s: Ω̄ = 20, 3 runs, 27 200 steps, largest difference
+    // 6.3e-3 of the range (root moment); Ω̄ = 50, 3 runs, 39 172 steps, 7.3e-3. The
+    // tolerance is the request itself. (Until session 18 the beam started unstretched:
+    // its axial ringing pumped the flap motion and no step made the history converge.)
+    let cases: Vec<_> = [20.0, 50.0]
+        .into_iter()
+        .map(|w| {
+            std::thread::spawn(move || {
+                let o = format!("omega={w}");
+                let base = ["models/rotating_cantilever.toml", "--set", &o];
+                let mut a = base.to_vec();
+                a.extend(["--set", "t_end=4", "--accuracy", "1e-2"]);
+                let adaptive = run_json(&a);
+                let mut r = base.to_vec();
+                r.extend(["--set", "t_end=4", "--set", "dt=3.90625e-5"]);
+                (w, adaptive, run_json(&r))
+            })
+        })
+        .collect();
+    for c in cases {
+        let (w, adaptive, reference) = c.join().unwrap();
+        assert!(warnings(&adaptive).is_empty(), "Ω̄ = {w}: {adaptive}");
+        assert!(adaptive["accuracy"]["runs"].as_u64().unwrap() >= 2);
+        for s in ["tip_flap", "root_moment"] {
+            let e = history_error(&adaptive, &reference, s);
+            eprintln!(
+                "Ω̄ = {w}: {s} differs by {e:.2e} of its range ({} steps in all runs)",
+                adaptive["accuracy"]["steps_all_runs"]
+            );
+            assert!(e <= 1e-2, "Ω̄ = {w}, {s}: {e}");
+        }
+    }
+}
+
+#[test]
+fn a_load_pulse_that_falls_between_the_steps_is_warned_and_refined_under_accuracy_control() {
+    // The rotating cantilever's smooth 0.05 s tip pulse at dt = 0.1: both ends of the first
+    // step see a zero time factor, so the run applies no load, its response is zero and so
+    // is its time-error estimate. The missed impulse (100 %) is the warning and, under
+    // `--accuracy`, the first run's error (measured: 5 runs, from dt = 0.1 to 5.6e-4, tip
+    // peak 7.58e-4 m against 7.64e-4 m at dt = 5e-4; tolerance: the request, 5 % of the
+    // peak-to-peak range 1.5e-3 m).
+    let base = [
+        "models/rotating_cantilever.toml",
+        "--set",
+        "t_end=2",
+        "--set",
+        "dt=0.1",
+    ];
+    let fixed = run_json(&base);
+    let w = warnings(&fixed);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("too large for the loads") && w.contains("100.0 % less")),
+        "{w:?}"
+    );
+    let mut a = base.to_vec();
+    a.extend(["--accuracy", "0.05"]);
+    let adaptive = run_json(&a);
+    assert!(warnings(&adaptive).is_empty(), "{adaptive}");
+    let hist = adaptive["accuracy"]["history"].as_array().unwrap();
+    assert_eq!(hist[0]["estimate"].as_f64(), Some(1.0), "{hist:?}");
+    let mut r = base.to_vec();
+    r.extend(["--set", "dt=5e-4"]);
+    let reference = run_json(&r);
+    let peak = |v: &Value| v["sensors"]["tip_flap"]["max"][0].as_f64().unwrap();
+    let range = peak(&reference) - reference["sensors"]["tip_flap"]["min"][0].as_f64().unwrap();
+    eprintln!("tip peak {} against {}", peak(&adaptive), peak(&reference));
+    assert!((peak(&adaptive) - peak(&reference)).abs() <= 0.05 * range);
 }

@@ -58,6 +58,12 @@ const CASES: &[(&str, usize, &str, &str)] = &[
         "inertia not positive definite",
     ),
     ("dt_zero.toml", 29, "solver.dt", "must be > 0"),
+    (
+        "steady_start_on_a_spin_up.toml",
+        63,
+        "initial.steady",
+        "needs a body rotation driven at a constant rate",
+    ),
     ("syntax_error.toml", 25, "section", "invalid basic string"),
 ];
 

@@ -698,15 +698,47 @@ impl Compiler<'_> {
                 scale,
             });
         }
-        let initial_rotation = match &spec.initial {
-            None => None,
-            Some(ini) => {
-                let ini = ini.get_ref();
-                let omega = self.vec3(&ini.angular_velocity, "initial.angular_velocity")?;
-                let center = self.opt_vec3(&ini.center, "initial.center")?;
-                Some((omega, center))
-            }
-        };
+        let mut initial_steady = None;
+        let initial_rotation =
+            match &spec.initial {
+                None => None,
+                Some(sec) => {
+                    let ini = sec.get_ref();
+                    let steady = ini.steady.as_ref().filter(|s| *s.get_ref());
+                    match (&ini.angular_velocity, steady) {
+                        (Some(w), None) => {
+                            let omega = self.vec3(w, "initial.angular_velocity")?;
+                            let center = self.opt_vec3(&ini.center, "initial.center")?;
+                            Some((omega, center))
+                        }
+                        (None, Some(st)) => {
+                            if let Some(c) = &ini.center {
+                                return Err(self.err(
+                                c.span(),
+                                "initial.center",
+                                "a steady start turns about the hub's own axis: remove `center`",
+                            ));
+                            }
+                            initial_steady = Some(st.span());
+                            None
+                        }
+                        (Some(w), Some(_)) => return Err(self.err(
+                            w.span(),
+                            "initial.angular_velocity",
+                            "give `angular_velocity` or `steady = true`, not both: a steady start \
+                             takes its rotation from the hub's drive",
+                        )),
+                        (None, None) => {
+                            return Err(self.err(
+                                sec.span(),
+                                "initial",
+                                "`[initial]` needs `angular_velocity` (a rigid rotation) or \
+                             `steady = true` (the steady rotation of a constant-speed hub)",
+                            ))
+                        }
+                    }
+                }
+            };
         let gravity = match &spec.environment {
             Some(e) => self.opt_vec3(&e.get_ref().gravity, "environment.gravity")?,
             None => [0.0; 3],
@@ -751,7 +783,8 @@ impl Compiler<'_> {
             .collect();
         let dof_eq: Vec<Option<usize>> = dofs.iter().map(|d| d.eq).collect();
         let rot_eq = rotation_equations(n_eq, &dof_eq, &spins, &hinges, &model_bodies);
-        Ok(Model {
+        let (file, text) = (self.file, self.text);
+        let model = Model {
             name,
             path: self.file.to_string(),
             source: self.text.to_string(),
@@ -772,12 +805,26 @@ impl Compiler<'_> {
             solver,
             n_eq,
             initial_rotation,
+            initial_steady: initial_steady.is_some(),
             repeats,
             hinge_of_dof,
             elem_data,
             dof_eq,
             rot_eq,
-        })
+        };
+        if let Some(span) = initial_steady {
+            if crate::solver::rotating::constant_rate_hub(&model).is_none() {
+                return Err(ModelError::at(
+                    file,
+                    text,
+                    span,
+                    "initial.steady",
+                    "a steady start needs a body rotation driven at a constant rate over the \
+                     whole run (a hub with `drive = \"omega*t\"`); this model has none",
+                ));
+            }
+        }
+        Ok(model)
     }
 
     /// Parameters in file order; an expression may use the parameters before it. An

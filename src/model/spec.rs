@@ -338,12 +338,14 @@ pub struct RepeatSpec {
 }
 
 /// `[initial]`: the whole model starts in rigid rotation with `angular_velocity` about
-/// `center` (default the origin).
+/// `center` (default the origin), or, with `steady = true`, in the steady rotation of its
+/// constant-speed hub (centrifugally stretched, at rest in the rotating frame).
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSpec {
-    pub angular_velocity: Spanned<Vector>,
+    pub angular_velocity: Option<Spanned<Vector>>,
     pub center: Option<Spanned<Vector>>,
+    pub steady: Option<Spanned<bool>>,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]

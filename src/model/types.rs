@@ -330,6 +330,10 @@ pub struct Model {
     pub n_eq: usize,
     /// `[initial]`: rigid rotation (omega, center) the free dofs start in
     pub initial_rotation: Option<(Vec3, Vec3)>,
+    /// `[initial] steady = true`: the run starts in the steady rotation of the model's
+    /// constant-speed hub ([`crate::solver::rotating::steady_start`]) instead of the
+    /// unstretched reference
+    pub initial_steady: bool,
     /// what each `[[repeat]]` generated (empty for a file without repeats)
     pub repeats: Vec<super::repeat::RepeatSummary>,
     /// each element's undeformed constants (reference frame, chord, length, section) in
