@@ -477,3 +477,52 @@ fn pencil_with_a_massless_combination_of_massive_coordinates_is_condensed() {
         assert!((s * sh[1] + c * sh[2]).abs() < 1e-12, "{sh:?}");
     }
 }
+
+#[test]
+fn past_the_axial_divergence_modes_warn_and_a_steady_start_fails_with_the_reason() {
+    // The rotating cantilever with EA = 1e3 at Ω̄ = 50: Ω·L·sqrt(ρA/EA) = 1.58 > π/2, so the
+    // centrifugally loaded bar has no stretched equilibrium. `modes` used to report
+    // frequencies about the last Newton iterate without a word; now it warns, and a run
+    // that starts in steady rotation stops at t = 0 (exit 3) naming the cause. At EA = 1e5
+    // (0.16) neither happens.
+    let m = "models/rotating_cantilever.toml";
+    for (ea, diverged) in [("EA=1e3", true), ("EA=1e5", false)] {
+        let out = latdyn(&["modes", m, "--set", "omega=50", "--set", ea, "--json"]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let w = v["warnings"].as_array().unwrap();
+        assert_eq!(!w.is_empty(), diverged, "{ea}: {v}");
+        if diverged {
+            assert!(w[0]
+                .as_str()
+                .unwrap()
+                .contains("steady rotating state was not found"));
+        }
+        let run = latdyn(&[
+            "run",
+            m,
+            "--set",
+            "omega=50",
+            "--set",
+            ea,
+            "--set",
+            "t_end=0.02",
+            "--json",
+        ]);
+        let code = run.status.code();
+        if diverged {
+            assert_eq!(code, Some(3));
+            let err = String::from_utf8_lossy(&run.stderr);
+            assert!(
+                err.contains("`[initial] steady`") && err.contains("divergence"),
+                "{err}"
+            );
+        } else {
+            assert_eq!(code, Some(0), "{}", String::from_utf8_lossy(&run.stderr));
+        }
+    }
+}

@@ -254,6 +254,9 @@ pub struct RotatingModes {
     pub damping: Vec<f64>,
     /// Newton iterations of the steady-state solve
     pub steady_iterations: usize,
+    /// whether the steady state's residual met its tolerance (else the modes are about a
+    /// state that is not an equilibrium: the speed may be past a divergence)
+    pub steady_converged: bool,
     /// complex mode shapes of the lowest modes (as many as asked for with
     /// [`rotating_modes_with_shapes`]), by equation index; empty otherwise
     pub shapes: Vec<Vec<C64>>,
@@ -299,7 +302,7 @@ pub fn rotating_modes_with_shapes(
     spin: SteadySpin,
     shapes: usize,
 ) -> Result<RotatingModes, LinalgError> {
-    let (mut fr, iters, _) = steady_frame(model, spin)?;
+    let (mut fr, iters, converged) = steady_frame(model, spin)?;
     let n = model.n_eq;
     let k = fr.jacobian(Rate::Position);
     let c = fr.jacobian(Rate::Velocity);
@@ -321,6 +324,7 @@ pub fn rotating_modes_with_shapes(
         frequencies_hz: qm.frequencies_hz,
         damping: qm.damping,
         steady_iterations: iters,
+        steady_converged: converged,
         shapes: qm.shapes,
         mass_shapes,
         mass: m_sym,
@@ -412,12 +416,30 @@ pub fn steady_start(model: &Model) -> Result<State, String> {
         steady_frame(model, spin).map_err(|e| format!("steady rotation: {e}"))?;
     if !converged {
         return Err(format!(
-            "the steady rotation was not found: Newton did not converge in {} iterations",
+            "the steady rotation was not found: Newton did not converge in {} iterations \
+             (the speed may be past a divergence of the structure: an axial bar diverges at \
+             Ω·L·sqrt(ρA/EA) = π/2)",
             iters + 1
         ));
     }
     let z = vec![0.0; model.n_eq];
     Ok(fr.state(&z, &z, &z))
+}
+
+impl RotatingModes {
+    /// The warning for modes about a steady state that was not found, if so.
+    pub fn steady_warning(&self) -> Option<String> {
+        (!self.steady_converged).then(|| {
+            format!(
+                "the steady rotating state was not found at {:.6} rad/s (Newton on the \
+                 rotating-frame residual did not converge in {STEADY_MAX_ITER} iterations): \
+                 these modes are about a state that is not an equilibrium; the speed may be \
+                 past a divergence of the structure (an axial bar diverges at \
+                 Ω·L·sqrt(ρA/EA) = π/2)",
+                self.omega
+            )
+        })
+    }
 }
 
 /// Share of a mode's beam motion that is deformation rather than rigid motion of each
@@ -895,6 +917,7 @@ mod tests {
             frequencies_hz: (0..shapes.len()).map(|k| f * (k + 1) as f64).collect(),
             damping: vec![0.0; shapes.len()],
             steady_iterations: 0,
+            steady_converged: true,
             shapes,
             mass_shapes,
             mass: m,

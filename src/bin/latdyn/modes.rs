@@ -93,6 +93,10 @@ pub(crate) fn rotating_modes(
         .with_context(|| format!("{}: rotating-frame modes", m.path))?;
     let count = args.count.min(rm.frequencies_hz.len());
     let f = &rm.frequencies_hz[..count];
+    let warnings: Vec<String> = rm.steady_warning().into_iter().collect();
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", m.path);
+    }
     if args.model.json {
         let v = serde_json::json!({
             "frequencies_hz": f,
@@ -100,6 +104,7 @@ pub(crate) fn rotating_modes(
             "about": "steady_rotation",
             "omega_rad_s": rm.omega,
             "free_dofs": m.n_eq,
+            "warnings": warnings,
         });
         emit(&format!("{v}\n"))
     } else {
@@ -140,6 +145,7 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
     // still find it among the candidates
     let want = args.count + 4;
     let mut steps = Vec::with_capacity(values.len());
+    let mut warnings: Vec<String> = Vec::new();
     let mut free_dofs = 0;
     for &v in &values {
         let mut set = args.model.set.clone();
@@ -174,6 +180,10 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
         free_dofs = m.n_eq;
         let rm = rotating::rotating_modes_with_shapes(&m, spin, want)
             .with_context(|| format!("{}: rotating-frame modes at {}={v}", m.path, range.name))?;
+        if let Some(w) = rm.steady_warning() {
+            eprintln!("warning: {}: {}={v}: {w}", m.path, range.name);
+            warnings.push(format!("{}={v}: {w}", range.name));
+        }
         steps.push(rm);
     }
     let branches = rotating::track_branches(&steps, args.count);
@@ -203,6 +213,7 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
             "branches": list,
             "sorted_frequencies_hz": sorted,
             "free_dofs": free_dofs,
+            "warnings": warnings,
         });
         emit(&format!("{v}\n"))
     } else {
