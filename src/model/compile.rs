@@ -269,6 +269,34 @@ impl Compiler<'_> {
         ModelError::at(self.file, self.text, span, field, msg)
     }
 
+    /// `[initial]`: a rigid rotation (ω, center), or the span of `steady = true`.
+    #[allow(clippy::type_complexity)]
+    fn initial(
+        &self,
+        sec: &Spanned<InitialSpec>,
+    ) -> Result<(Option<(Vec3, Vec3)>, Option<Range<usize>>)> {
+        const BOTH: &str = "give `angular_velocity` or `steady = true`, not both: a steady \
+                            start takes its rotation from the hub's drive";
+        const NEITHER: &str = "`[initial]` needs `angular_velocity` (a rigid rotation) or \
+                               `steady = true` (the steady rotation of a constant-speed hub)";
+        const CENTER: &str = "a steady start turns about the hub's own axis: remove `center`";
+        let ini = sec.get_ref();
+        let steady = ini.steady.as_ref().filter(|s| *s.get_ref());
+        match (&ini.angular_velocity, steady) {
+            (Some(w), None) => {
+                let omega = self.vec3(w, "initial.angular_velocity")?;
+                let center = self.opt_vec3(&ini.center, "initial.center")?;
+                Ok((Some((omega, center)), None))
+            }
+            (None, Some(st)) => match &ini.center {
+                Some(c) => Err(self.err(c.span(), "initial.center", CENTER)),
+                None => Ok((None, Some(st.span()))),
+            },
+            (Some(w), Some(_)) => Err(self.err(w.span(), "initial.angular_velocity", BOTH)),
+            (None, None) => Err(self.err(sec.span(), "initial.angular_velocity", NEITHER)),
+        }
+    }
+
     fn num_at(&self, n: &Num, span: Range<usize>, field: &str) -> Result<f64> {
         match n {
             Num::Value(v) if v.is_finite() => Ok(*v),
@@ -698,47 +726,10 @@ impl Compiler<'_> {
                 scale,
             });
         }
-        let mut initial_steady = None;
-        let initial_rotation =
-            match &spec.initial {
-                None => None,
-                Some(sec) => {
-                    let ini = sec.get_ref();
-                    let steady = ini.steady.as_ref().filter(|s| *s.get_ref());
-                    match (&ini.angular_velocity, steady) {
-                        (Some(w), None) => {
-                            let omega = self.vec3(w, "initial.angular_velocity")?;
-                            let center = self.opt_vec3(&ini.center, "initial.center")?;
-                            Some((omega, center))
-                        }
-                        (None, Some(st)) => {
-                            if let Some(c) = &ini.center {
-                                return Err(self.err(
-                                c.span(),
-                                "initial.center",
-                                "a steady start turns about the hub's own axis: remove `center`",
-                            ));
-                            }
-                            initial_steady = Some(st.span());
-                            None
-                        }
-                        (Some(w), Some(_)) => return Err(self.err(
-                            w.span(),
-                            "initial.angular_velocity",
-                            "give `angular_velocity` or `steady = true`, not both: a steady start \
-                             takes its rotation from the hub's drive",
-                        )),
-                        (None, None) => {
-                            return Err(self.err(
-                                sec.span(),
-                                "initial",
-                                "`[initial]` needs `angular_velocity` (a rigid rotation) or \
-                             `steady = true` (the steady rotation of a constant-speed hub)",
-                            ))
-                        }
-                    }
-                }
-            };
+        let (initial_rotation, initial_steady) = match &spec.initial {
+            None => (None, None),
+            Some(sec) => self.initial(sec)?,
+        };
         let gravity = match &spec.environment {
             Some(e) => self.opt_vec3(&e.get_ref().gravity, "environment.gravity")?,
             None => [0.0; 3],

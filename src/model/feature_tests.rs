@@ -61,6 +61,22 @@ fn initial_rotation_compiles_with_default_center() {
         "[initial]\nangular_velocity = [0, 0, 1]\nvelocity = [0, 0, 0]\n",
     ));
     assert_eq!(e.field.as_deref(), Some("initial.velocity"), "{e}");
+
+    // a steady start: alone, and only on a model with a constant-speed hub
+    let e = fails(&with_beam(
+        "[initial]\nangular_velocity = [0, 0, 1]\nsteady = true\n",
+    ));
+    assert_eq!(e.field.as_deref(), Some("initial.angular_velocity"), "{e}");
+    assert!(e.to_string().contains("not both"), "{e}");
+    let e = fails(&with_beam("[initial]\nsteady = true\ncenter = [0, 0, 0]\n"));
+    assert_eq!(e.field.as_deref(), Some("initial.center"), "{e}");
+    let e = fails(&with_beam("[initial]\nsteady = true\n"));
+    assert_eq!(e.field.as_deref(), Some("initial.steady"), "{e}");
+    let e = fails(&with_beam("[initial]\nsteady = 1\n"));
+    assert_eq!(e.field.as_deref(), Some("initial.steady"), "{e}");
+    // `steady = false` is no start at all: the section then needs a rotation
+    let e = fails(&with_beam("[initial]\nsteady = false\n"));
+    assert_eq!(e.field.as_deref(), Some("initial.angular_velocity"), "{e}");
 }
 
 #[test]
