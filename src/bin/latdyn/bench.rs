@@ -124,7 +124,8 @@ pub struct TimeErrorRow {
     /// largest difference of a component's minimum or maximum from the reference's,
     /// relative to the same range
     pub true_extremes: f64,
-    /// the run warned that its step was too large
+    /// the run carried a warning (step too large for the frequencies or the loads, energy
+    /// balance, accuracy target not met)
     pub warned: bool,
 }
 
@@ -889,10 +890,9 @@ fn time_error_ladder(
                 }
                 Ok((_, h, st, wall)) => {
                     let errs = history_errors(&h.t, &select(&h), &h_ref.t, &ref_sel);
-                    let warned = st
-                        .warnings()
-                        .iter()
-                        .any(|w| w.contains("time step too large"));
+                    // any warning: a step too large for the frequencies or the loads, the
+                    // energy balance, an accuracy target not met
+                    let warned = !st.warnings().is_empty();
                     // an accuracy target's cost: the steps of every run it made
                     let steps = if accuracy.is_some() {
                         st.accuracy_steps
@@ -1145,7 +1145,9 @@ fn time_error_markdown(r: &BenchReport) -> String {
          the largest |y − y_ref| on the output grid over the reference's range (per \
          component, largest over the components, the measure the estimate reports); \
          extremes: the same for the components' minima and maxima; ratio = est / \
-         pointwise (the estimate's bar: within a factor 3).\n\n",
+         pointwise (the estimate's bar: within a factor 3); ⚠: the run carried a warning \
+         (step too large for the frequencies or the loads, energy balance, accuracy target \
+         not met).\n\n",
     );
     for sc in &r.time_error_scenes {
         s.push_str(&format!(
