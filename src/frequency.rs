@@ -105,6 +105,15 @@ pub fn first_bending(model: &Model, sensor: (usize, usize), x: &[f64], dt: f64) 
         return out;
     };
     let rm = match rotating_modes_with_shapes(model, spin, SHAPES) {
+        Ok(rm) if !rm.steady_converged => {
+            largest(&mut out);
+            out.warnings.push(format!(
+                "first_bending_hz: no modal prior: {}; the strongest line is reported and may \
+                 be another mode or a rotor harmonic",
+                rm.steady_warning().unwrap_or_default()
+            ));
+            return out;
+        }
         Ok(rm) => rm,
         Err(e) => {
             largest(&mut out);
