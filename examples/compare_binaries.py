@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Shipped scenes through two latdyn binaries: the largest sensor (or frequency) difference
 relative to the run's largest value, and Newton iterations, per scene. Used to show that a change
-moves no number: python3 examples/compare_binaries.py OLD_BINARY NEW_BINARY (from the repo root)."""
+moves no number: python3 examples/compare_binaries.py OLD_BINARY NEW_BINARY (from the repo root).
+A binary older than session 18 refuses models/rotating_cantilever.toml (`[initial] steady`):
+that line then reads "EXIT 2 0"; compare it on the file as it was (git show a454aa1:PATH)."""
 import json, subprocess, sys, math
 old, new = sys.argv[1], sys.argv[2]
 cases = [("run","models/pendulum.toml",[]),("run","models/fourbar.toml",[]),("run","models/rotating_cantilever.toml",[]),
