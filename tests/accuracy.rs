@@ -359,7 +359,7 @@ fn a_step_that_does_not_divide_the_output_interval_is_spread_evenly_not_ended_by
     let out = latdyn(&args);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("does not divide the output interval") && err.contains("9 equal step(s)"),
+        err.contains("does not divide the output interval") && err.contains("9 equal steps"),
         "{err}"
     );
     for sensor in ["flap_angle", "mid_moment", "tip"] {

@@ -100,11 +100,20 @@ pub(crate) fn spread_note(m: &latdyn::model::Model) -> Option<String> {
         return None;
     }
     let (n, h) = latdyn::solver::dynamics::spread_step(m)?;
-    Some(format!(
-        "note: {}: dt = {:e} s does not divide the output interval {:e} s; each interval \
-         is {n} equal step(s) of {h:.6e} s",
-        m.path, m.solver.dt, m.solver.output_dt
-    ))
+    let (dt, out) = (m.solver.dt, m.solver.output_dt);
+    Some(if dt > out {
+        format!(
+            "note: {}: dt = {dt:e} s exceeds the output interval {out:e} s; each step is \
+             the interval",
+            m.path
+        )
+    } else {
+        format!(
+            "note: {}: dt = {dt:e} s does not divide the output interval {out:e} s; each \
+             interval is {n} equal steps of {h:.6e} s",
+            m.path
+        )
+    })
 }
 
 pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
