@@ -76,7 +76,7 @@ const LOAD_SUBSTEPS: usize = 8;
 /// Share of a load's impulse (∫|s| dt of its time factor over the run) that the steps may
 /// miss, with its sign summed over the run, before the run warns: the same 1 % as
 /// [`TIME_ERROR_WARN`], since a load applied 1 % short drives a response about 1 % short.
-/// Measured on the rotating cantilever's smooth 0.05 s tip pulse: 1e-16 of it at dt = 0.01
+/// Measured on the rotating cantilever's smooth 0.05 s tip pulse: 2e-16 of it at dt = 0.01
 /// (5 steps per pulse), 100 % at dt = 0.1 (the pulse falls between two steps' ends, and
 /// the run, which saw no load, read a time-error estimate of 0). A resolved factor's
 /// trapezoid errors alternate in sign and cancel; a jump on a step end contributes 0.
@@ -350,8 +350,9 @@ impl RunStats {
     /// dt = 0.05 2.3e-2 and at dt = 0.1 2.4e-2 (tip response 45–60 % low). 1e-2 lies 3.6×
     /// above the worst clean run and 2.3× below the mildest bad one. (The rotating
     /// cantilever as shipped now loses 8.7e-3 at dt = 0.05 and 5.1e-2 at 0.1, where its
-    /// 0.05 s pulse falls between the steps: `LOAD_IMPULSE_WARN` flags both.) The same limit serves ρ∞ = 1, which dissipates
-    /// nothing numerically: its loss, like its growth, is integration error only, and
+    /// 0.05 s pulse falls between the steps: `LOAD_IMPULSE_WARN` flags both.) The same
+    /// limit serves ρ∞ = 1, which dissipates nothing numerically: its loss, like its
+    /// growth, is integration error only, and
     /// the clean ρ∞ = 1 runs measured stay below 1e-4 (the growth limit catches the
     /// unstable ones first).
     pub const ENERGY_LOSS_LIMIT: f64 = 1e-2;
