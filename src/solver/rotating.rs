@@ -25,6 +25,10 @@ use crate::model::{ChainLink, DofMode, Model, NodeKin};
 /// Iteration limit of the steady-state solve.
 const STEADY_MAX_ITER: usize = 50;
 
+/// Why a steady state may not exist, said wherever one was not found.
+const DIVERGENCE_HINT: &str = "the speed may be past a divergence of the structure (an \
+                               axial bar diverges at Ω·L·sqrt(ρA/EA) = π/2)";
+
 /// A constant-speed rotation found in the model.
 #[derive(Clone, Copy, Debug)]
 pub struct SteadySpin {
@@ -416,9 +420,8 @@ pub fn steady_start(model: &Model) -> Result<State, String> {
         steady_frame(model, spin).map_err(|e| format!("steady rotation: {e}"))?;
     if !converged {
         return Err(format!(
-            "the steady rotation was not found: Newton did not converge in {} iterations \
-             (the speed may be past a divergence of the structure: an axial bar diverges at \
-             Ω·L·sqrt(ρA/EA) = π/2)",
+            "the steady rotation was not found: Newton did not converge in {} iterations; \
+             {DIVERGENCE_HINT}",
             iters + 1
         ));
     }
@@ -433,9 +436,8 @@ impl RotatingModes {
             format!(
                 "the steady rotating state was not found at {:.6} rad/s (Newton on the \
                  rotating-frame residual did not converge in {STEADY_MAX_ITER} iterations): \
-                 these modes are about a state that is not an equilibrium; the speed may be \
-                 past a divergence of the structure (an axial bar diverges at \
-                 Ω·L·sqrt(ρA/EA) = π/2)",
+                 these modes are about a state that is not an equilibrium; \
+                 {DIVERGENCE_HINT}",
                 self.omega
             )
         })
