@@ -26,6 +26,8 @@ use std::str::FromStr;
 use exmex::prelude::*;
 use exmex::{FloatOpsFactory, MakeOperators, MatchLiteral, Operator};
 
+pub use super::interval::Interval;
+
 exmex::literal_matcher_from_pattern!(SciMatcher, r"^([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?");
 
 /// exmex's float operators minus its constants (see the module docs).
@@ -803,8 +805,41 @@ impl exmex::num::Float for Jet {
 /// A prescribed coordinate q(t) with exact first and second derivatives.
 #[derive(Clone, Debug)]
 pub struct TimeFunction {
-    pub source: String,
+    /// the expression as written (boxed: a `TimeFunction` stays within 64 bytes)
+    pub source: Box<str>,
     kind: Kind,
+    /// the same expression over intervals ([`TimeFunction::range`]); None for constants
+    range: Option<Box<RangeForm>>,
+}
+
+/// An expression over [`Interval`]s with its variables in exmex's order: the parameters as
+/// point intervals and the slot of `t` (flat evaluation, as [`Kind::JetVars`]).
+#[derive(Clone, Debug)]
+struct RangeForm {
+    expr: Expr<Interval>,
+    vals: Vec<Interval>,
+    slot: usize,
+}
+
+impl RangeForm {
+    fn new(source: &str, params: &dyn Scope) -> Option<Box<RangeForm>> {
+        let expr = parse::<Interval>(source).ok()?;
+        let mut slot = None;
+        let mut vals = Vec::new();
+        for (i, n) in expr.var_names().iter().enumerate() {
+            if n == TIME {
+                slot = Some(i);
+                vals.push(Interval::point(0.0));
+            } else {
+                vals.push(Interval::point(lookup(n, params)?));
+            }
+        }
+        Some(Box::new(RangeForm {
+            expr,
+            vals,
+            slot: slot?,
+        }))
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -898,7 +933,7 @@ impl TimeFunction {
                 Err(_) => Kind::Jet(Box::new(substitute(parse::<Jet>(source)?, source, params)?)),
             }
         };
-        TimeFunction::checked(source, kind)
+        TimeFunction::checked(source, kind, params)
     }
 
     /// A long expression: jets evaluated flat over a variable vector (exmex's flat
@@ -924,13 +959,18 @@ impl TimeFunction {
                     .v,
             ),
         };
-        TimeFunction::checked(source, kind)
+        TimeFunction::checked(source, kind, params)
     }
 
-    fn checked(source: &str, kind: Kind) -> Result<TimeFunction, String> {
+    fn checked(source: &str, kind: Kind, params: &dyn Scope) -> Result<TimeFunction, String> {
+        let range = match kind {
+            Kind::Constant(_) => None,
+            _ => RangeForm::new(source, params),
+        };
         let f = TimeFunction {
-            source: source.to_string(),
+            source: source.into(),
             kind,
+            range,
         };
         let at0 = f.eval(0.0);
         if at0.iter().any(|v| !v.is_finite()) {
@@ -944,9 +984,30 @@ impl TimeFunction {
     /// q(t) = v for all t
     pub fn constant(v: f64) -> TimeFunction {
         TimeFunction {
-            source: format!("{v}"),
+            source: format!("{v}").into(),
             kind: Kind::Constant(v),
+            range: None,
         }
+    }
+
+    /// An enclosure of q over [t0, t1] (to round-off; see [`Interval`]): None where no
+    /// interval form could be built, NaN bounds where q is undefined somewhere on it.
+    pub fn range(&self, t0: f64, t1: f64) -> Option<Interval> {
+        if let Kind::Constant(v) = self.kind {
+            return Some(Interval::point(v));
+        }
+        let r = self.range.as_ref()?;
+        let mut buf = [Interval::default(); 16];
+        let mut heap = Vec::new();
+        let x: &mut [Interval] = if r.vals.len() <= buf.len() {
+            buf[..r.vals.len()].copy_from_slice(&r.vals);
+            &mut buf[..r.vals.len()]
+        } else {
+            heap.extend_from_slice(&r.vals);
+            &mut heap
+        };
+        x[r.slot] = Interval::new(t0, t1);
+        Some(r.expr.eval_relaxed(x).unwrap_or(Interval::point(f64::NAN)))
     }
 
     /// Whether the derivatives come from exmex's symbolic differentiation (else from jets).
@@ -993,6 +1054,7 @@ impl TimeFunction {
         TimeFunction {
             source: source.into(),
             kind: Kind::Jet(Box::new(e)),
+            range: RangeForm::new(source, &List(params)),
         }
     }
 }

@@ -6,6 +6,7 @@ mod error;
 pub mod expr;
 #[cfg(test)]
 mod feature_tests;
+mod interval;
 pub mod limits;
 pub mod repeat;
 pub mod spec;
