@@ -331,7 +331,9 @@ fn accuracy_on_the_spin_up_meets_the_target_at_most_twice_the_cost_of_the_cheape
 
 #[test]
 fn accuracy_out_of_range_is_a_usage_error() {
-    for bad in ["0", "-1", "0.5", "nan", "x"] {
+    // 1e-300: below 100 × the model's Newton tolerance, where the estimate stops falling
+    // with the step (`accuracy_floor`; it ran a 21-million-step run on the blade)
+    for bad in ["0", "-1", "0.5", "nan", "x", "1e-300"] {
         let arg = format!("--accuracy={bad}");
         let out = latdyn(&["run", "models/pendulum.toml", &arg]);
         assert_eq!(out.status.code(), Some(2), "--accuracy {bad}");

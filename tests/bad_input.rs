@@ -64,6 +64,12 @@ const CASES: &[(&str, usize, &str, &str)] = &[
         "initial.steady",
         "needs a body rotation driven at a constant rate",
     ),
+    (
+        "accuracy_below_newton_tolerance.toml",
+        31,
+        "solver.accuracy",
+        "100 × the Newton tolerance",
+    ),
     ("syntax_error.toml", 25, "section", "invalid basic string"),
 ];
 

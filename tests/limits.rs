@@ -147,6 +147,68 @@ fn an_output_grid_too_large_to_keep_fails_at_check_and_run() {
 }
 
 #[test]
+fn a_run_of_more_steps_than_the_limit_fails_at_check_and_run() {
+    // dt = 1e-9 on the blade's 10 s (1e10 steps behind an output grid of 0.01 s) passed
+    // every size check and started a run that would not have ended for days
+    for verb in ["check", "run"] {
+        let out = latdyn(&[verb, "models/flapping_blade.toml", "--set", "dt=1e-9"]);
+        fails_with(
+            &out,
+            &[
+                "solver.dt",
+                "10000000000",
+                "key `steps`",
+                "exceeds the limit",
+            ],
+        );
+    }
+    let out = latdyn_env(
+        &["check", "models/flapping_blade.toml", "--set", "dt=1e-9"],
+        &[("LATDYN_LIMITS", "steps=1e10")],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn accuracy_control_does_not_start_a_run_over_the_step_limit() {
+    // 1e-3 on the blade needs steps near 1e-4 s: 1 000 steps per 0.1 s, over a limit of
+    // 300. The first run (dt = 0.005, 20 steps) is made; the one it asks for is not, and
+    // the result says why, with the step it would have taken.
+    let out = latdyn_env(
+        &[
+            "run",
+            "models/flapping_blade.toml",
+            "--set",
+            "t_end=0.1",
+            "--accuracy",
+            "1e-3",
+            "--json",
+        ],
+        &[("LATDYN_LIMITS", "steps=300")],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let w = v["warnings"].to_string();
+    assert!(
+        w.contains("was not met") && w.contains("over the limit of 300"),
+        "{w}"
+    );
+    let runs = v["accuracy"]["history"].as_array().unwrap();
+    assert!(
+        runs.iter().all(|r| r["steps"].as_u64().unwrap() <= 300),
+        "{runs:?}"
+    );
+}
+
+#[test]
 fn huge_vary_ranges_fail_before_any_variant_is_made() {
     for verb in ["sweep", "modes"] {
         let out = latdyn(&[verb, ROTATING, "--vary", "omega=1:2:100000000"]);

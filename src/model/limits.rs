@@ -17,7 +17,7 @@ use std::path::Path;
 pub const ENV: &str = "LATDYN_LIMITS";
 
 /// The keys `LATDYN_LIMITS` accepts, with what each one bounds.
-pub const KEYS: [(&str, &str); 5] = [
+pub const KEYS: [(&str, &str); 6] = [
     (
         "model_bytes",
         "size of a model file or a --variants CSV file in bytes",
@@ -33,6 +33,10 @@ pub const KEYS: [(&str, &str); 5] = [
         "variants",
         "variants of a sweep (--vary grid × --variants rows) or values of `modes --vary`",
     ),
+    (
+        "steps",
+        "time steps of one run, t_end / dt (each run that `--accuracy` makes, too)",
+    ),
 ];
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -42,6 +46,7 @@ pub struct Limits {
     pub dofs: u64,
     pub output_values: u64,
     pub variants: u64,
+    pub steps: u64,
 }
 
 impl Default for Limits {
@@ -57,6 +62,11 @@ impl Default for Limits {
             output_values: 100_000_000,
             // each variant is a compiled model held in memory for the campaign
             variants: 100_000,
+            // time, not memory: a step of the smallest model costs about 10 µs, so this is
+            // about 20 minutes of the smallest and hours of a shipped one; the largest
+            // shipped run (a reference at dt = 7.8e-6 over 12 s) takes 1.5e6. `dt = 1e-12`
+            // typed for 1e-2 must not start a run that never ends.
+            steps: 100_000_000,
         }
     }
 }
@@ -94,6 +104,7 @@ impl Limits {
                 "dofs" => l.dofs = x,
                 "output_values" => l.output_values = x,
                 "variants" => l.variants = x,
+                "steps" => l.steps = x,
                 _ => {
                     let keys: Vec<&str> = KEYS.iter().map(|(k, _)| *k).collect();
                     return Err(format!(

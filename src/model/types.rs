@@ -274,6 +274,9 @@ pub struct SolverSettings {
     pub rayleigh_beta: f64,
     /// statics: number of initial load steps
     pub load_steps: usize,
+    /// most time steps one run may take (`LATDYN_LIMITS` key `steps`): checked against
+    /// t_end / dt when the model is compiled, and by `--accuracy` before each run
+    pub max_steps: u64,
 }
 
 impl Default for SolverSettings {
@@ -292,6 +295,7 @@ impl Default for SolverSettings {
             rayleigh_alpha: 0.0,
             rayleigh_beta: 0.0,
             load_steps: 1,
+            max_steps: super::Limits::default().steps,
         }
     }
 }

@@ -1614,7 +1614,29 @@ async fn run_accuracy(
         };
         // a step must shrink, and by at most 16x per run (an estimate far outside its
         // asymptotic range must not send the next run to a tiny step)
-        h = even_step(&m, next.clamp(h / 16.0, 0.9 * h));
+        let h_next = even_step(&m, next.clamp(h / 16.0, 0.9 * h));
+        // a target out of reach (1e-300 asked, or an error that does not fall) must not
+        // start a run of 1e10 steps: the run that would exceed the step limit is not made
+        let steps_next = (m.solver.t_end / h_next - 1e-9).ceil();
+        if steps_next > m.solver.max_steps as f64 {
+            let mut r = r;
+            if r.2.is_none() {
+                let worst = r.1.worst_time_error().map_or(String::new(), |(k, _)| {
+                    format!(" `{}`", model.sensors[k].name)
+                });
+                r.1.notes.push(format!(
+                    "the accuracy target {tol:e} was not met: the estimated time-discretisation \
+                     error of sensor{worst} is {:.2} % of its range after {runs} runs (last \
+                     step {h:e} s); the next run, at {h_next:e} s, would take {} steps, over \
+                     the limit of {} (LATDYN_LIMITS key `steps`)",
+                    100.0 * err,
+                    crate::model::limits::count(steps_next),
+                    m.solver.max_steps,
+                ));
+            }
+            break r;
+        }
+        h = h_next;
     };
     let (hist, mut stats, failure) = result;
     for (i, t) in hist.t.iter().enumerate() {

@@ -116,12 +116,25 @@ pub(crate) fn spread_note(m: &latdyn::model::Model) -> Option<String> {
     })
 }
 
+/// `--accuracy` against the model's Newton tolerance (see `accuracy_floor`).
+pub(crate) fn check_accuracy(target: f64, m: &latdyn::model::Model) -> anyhow::Result<()> {
+    use latdyn::model::compile::{accuracy_below_floor, accuracy_floor};
+    if target < accuracy_floor(m.solver.tol) {
+        anyhow::bail!(
+            "--accuracy {target:e}: {}",
+            accuracy_below_floor(target, m.solver.tol)
+        );
+    }
+    Ok(())
+}
+
 pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     use latdyn::output::{VariantState, VariantStatus};
     use std::sync::atomic::Ordering;
     let mut m = args.model.load()?;
-    if args.accuracy.is_some() {
-        m.solver.accuracy = args.accuracy;
+    if let Some(a) = args.accuracy {
+        check_accuracy(a, &m)?;
+        m.solver.accuracy = Some(a);
     }
     if let Some(note) = spread_note(&m) {
         eprintln!("{note}");

@@ -151,6 +151,9 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     // the element count decides `auto`; the model is compiled again per variant later
     let mut base_model = args.model.load()?;
     let n_elem = base_model.elements.len();
+    if let Some(a) = args.accuracy {
+        crate::run::check_accuracy(a, &base_model)?;
+    }
     base_model.solver.accuracy = args.accuracy.or(base_model.solver.accuracy);
     if let Some(note) = crate::run::spread_note(&base_model) {
         eprintln!(
