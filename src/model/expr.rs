@@ -1010,9 +1010,29 @@ impl TimeFunction {
         Some(r.expr.eval_relaxed(x).unwrap_or(Interval::point(f64::NAN)))
     }
 
+    /// Whether q is the same at every t.
+    pub fn is_constant(&self) -> bool {
+        matches!(self.kind, Kind::Constant(_))
+    }
+
     /// Whether the derivatives come from exmex's symbolic differentiation (else from jets).
     pub fn is_symbolic(&self) -> bool {
         !matches!(self.kind, Kind::Jet(_) | Kind::JetVars(..))
+    }
+
+    /// value and rate at time `t`: [`TimeFunction::eval`] without the acceleration, which
+    /// a symbolic drive then does not evaluate
+    pub fn eval_rate(&self, t: f64) -> [f64; 2] {
+        match &self.kind {
+            Kind::Symbolic(e) => [
+                e[0].eval_relaxed(&[t]).unwrap_or(f64::NAN),
+                e[1].eval_relaxed(&[t]).unwrap_or(f64::NAN),
+            ],
+            _ => {
+                let [q, v, _] = self.eval(t);
+                [q, v]
+            }
+        }
     }
 
     /// value, rate and acceleration at time `t` (NaN if the expression cannot be evaluated)
