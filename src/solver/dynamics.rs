@@ -1477,13 +1477,10 @@ pub(crate) async fn run_member(
 /// `LOAD_PANELS` panels. Samples alone cannot see a pulse that falls between them (the
 /// rotating cantilever's tip pulse at `t_pulse = 1e-3` and dt = 0.01 fell between all
 /// nine samples of the step, and the run applied no load without a word), so a panel is
-/// also halved while the factor's interval enclosure over it ([`TimeFunction::range`])
-/// is wider than twice what its five samples span plus 1e-3 of its magnitude, and that
-/// unexplained width did not shrink with the panel (at least 3/4 of the parent's): a
-/// feature narrower than the panel keeps its height until the samples see it, so the
-/// pulse is found by bisection, while an enclosure that is merely loose (`t - min(t, T)`
-/// encloses 0 by a width of twice the panel) halves with it and stops the search after
-/// one level (without that rule such a factor cost 1000 panels per step, 7× the run).
+/// also halved while the factor's interval enclosure says it may hide a feature there
+/// ([`hidden_feature`], slack 1e-3 of its magnitude): the pulse is then found by
+/// bisection, and a merely loose enclosure stops after one level (without that rule
+/// `t - min(t, 100)` cost 1000 panels per step, 7× the rotating cantilever's run).
 /// `peak` carries the largest |s| sampled so far. Returns the two integrals and the
 /// panels integrated (the refinement's cost).
 fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> (f64, f64, usize) {
@@ -1535,18 +1532,7 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> (f64, 
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, u), v| {
                 (l.min(*v), u.max(*v))
             });
-        let (hidden, excess) = match f.range(p.a, p.b) {
-            Some(r) => {
-                let mut excess = (r.hi - r.lo) - 2.0 * (hi - lo);
-                // NaN bounds (undefined somewhere) count as unexplained
-                if excess.is_nan() {
-                    excess = f64::INFINITY;
-                }
-                let slack = 1e-3 * r.lo.abs().max(r.hi.abs());
-                (excess > slack && excess >= 0.75 * p.excess, excess)
-            }
-            None => (false, 0.0),
-        };
+        let (hidden, excess) = hidden_feature(f, (p.a, p.b), (lo, hi), p.excess, 1e-3);
         let converged = (fine - coarse).abs() <= 15.0 * LOAD_QUAD_TOL * *peak * (p.b - p.a);
         let exhausted = p.depth >= LOAD_MAX_DEPTH || panels + 2 > LOAD_MAX_PANELS;
         if (converged && !hidden) || exhausted || m <= p.a || m >= p.b {
@@ -1573,16 +1559,41 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> (f64, 
     (sum, sum_abs, done)
 }
 
+/// Whether a time function may hide a feature in the panel (a, b) that its samples there,
+/// spanning `span` = (lowest, highest), do not show: its interval enclosure over the
+/// panel is wider than twice the samples' span plus `slack` of its magnitude, and that
+/// unexplained width (returned) is at least 3/4 of the parent panel's, `parent` (0 for a
+/// panel without one). A feature narrower than the panel keeps its height until a sample
+/// lands on it; a merely loose enclosure (`t - min(t, T)` encloses 0 by twice the panel's
+/// length) shrinks with the panel, so bisection stops after one level. NaN bounds count
+/// as unexplained. Used by [`factor_integral`] and [`drive_departure`].
+fn hidden_feature(
+    f: &TimeFunction,
+    (a, b): (f64, f64),
+    (lo, hi): (f64, f64),
+    parent: f64,
+    slack: f64,
+) -> (bool, f64) {
+    let Some(r) = f.range(a, b) else {
+        return (false, 0.0);
+    };
+    let mut excess = (r.hi - r.lo) - 2.0 * (hi - lo);
+    if excess.is_nan() {
+        excess = f64::INFINITY;
+    }
+    let slack = slack * r.lo.abs().max(r.hi.abs()) + f64::MIN_POSITIVE;
+    (excess > slack && excess >= 0.75 * parent, excess)
+}
+
 /// The largest departure, found over [t0, t1], of a drive's rate from the rate of the
 /// cubic through its values and rates at t0 and t1, which is what a step can represent of
 /// the drive (the generalized-α step sees the drive only at its ends). Sampled at the
-/// ends and midpoints of `DRIVE_PANELS` panels. A panel is halved while the cubic through its own ends
-/// misses its midpoint value by more than 1e-3 of the largest rate times its length (a
-/// feature the samples see but do not resolve), and, as in [`factor_integral`], while the
-/// drive's interval enclosure over it is wider than twice what its value samples span and
-/// that unexplained width does not shrink with the panel (a jerk narrower than the
-/// samples' spacing, found by bisection). `peak` carries the largest |rate| sampled;
-/// `e0`, `e1` are the drive's value and rate at t0 and t1.
+/// ends and midpoints of `DRIVE_PANELS` panels. A panel is halved where the cubic through
+/// its own ends misses its midpoint value by more than 1e-3 of the largest rate times its
+/// length (a feature the samples see but do not resolve), and where the drive's interval
+/// enclosure says it may hide one ([`hidden_feature`], slack 1e-9 of its magnitude: a
+/// jerk narrower than the samples' spacing, found by bisection). `peak` carries the
+/// largest |rate| sampled; `e0`, `e1` are the drive's value and rate at t0 and t1.
 fn drive_departure(
     f: &TimeFunction,
     (t0, e0): DriveSample,
@@ -1650,21 +1661,11 @@ fn drive_departure(
         let roundoff = 1e-12 * pn.qa[0].abs().max(pn.qb[0].abs());
         let unresolved = (qm[0] - cubic(pn.a, pn.b, pn.qa, pn.qb, m).0).abs()
             > 1e-3 * *peak * (pn.b - pn.a) + roundoff;
-        let (hidden, excess) = match f.range(pn.a, pn.b) {
-            Some(r) => {
-                let (lo, hi) = (
-                    pn.qa[0].min(qm[0]).min(pn.qb[0]),
-                    pn.qa[0].max(qm[0]).max(pn.qb[0]),
-                );
-                let mut excess = (r.hi - r.lo) - 2.0 * (hi - lo);
-                if excess.is_nan() {
-                    excess = f64::INFINITY;
-                }
-                let slack = 1e-9 * r.lo.abs().max(r.hi.abs()) + f64::MIN_POSITIVE;
-                (excess > slack && excess >= 0.75 * pn.excess, excess)
-            }
-            None => (false, 0.0),
-        };
+        let span = (
+            pn.qa[0].min(qm[0]).min(pn.qb[0]),
+            pn.qa[0].max(qm[0]).max(pn.qb[0]),
+        );
+        let (hidden, excess) = hidden_feature(f, (pn.a, pn.b), span, pn.excess, 1e-9);
         let room = pn.depth < LOAD_MAX_DEPTH && panels + 2 <= DRIVE_MAX_PANELS;
         if (unresolved || hidden) && room && m > pn.a && m < pn.b {
             panels += 2;
