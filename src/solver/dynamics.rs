@@ -92,6 +92,18 @@ const LOAD_MAX_PANELS: usize = 1000;
 /// trapezoid errors alternate in sign and cancel; a jump on a step end contributes 0.
 pub const LOAD_IMPULSE_WARN: f64 = 1e-2;
 
+/// Share of a load factor's ∫|s| dt by which it strays from the straight lines between
+/// the steps' ends (∫|s − ℓ| dt, summed without sign over the run) above which the run
+/// warns that the steps alias it. A sinusoid sampled p times per period reads (mean over
+/// phases, computed): 0.033 at p = 10, 0.13 at 5, 0.20 at 4, 0.33 at 3, 0.46 at 2.5,
+/// 0.22-1.0 at 2 (the Nyquist rate), 0.97 at 1.5 and about 1.3 at 1.01; the shipped
+/// rotating cantilever's pulse reads 0.08 at dt = 0.01 and 0.29 at 0.02. So above 0.5 the
+/// factor carries content near or above the steps' Nyquist frequency 1/(2 dt), which the
+/// steps turn into a false, lower one: `sin(2π·99 t)` at dt = 0.01 was applied as a 1 Hz
+/// load (tip peak 0.023 m against 2.7e-5 m) with its impulse check at 1e-15 and no word,
+/// as the aliased samples cancel over the run.
+pub const LOAD_SAMPLING_WARN: f64 = 0.5;
+
 /// Largest departure of a drive's rate, between two step ends, from the cubic through the
 /// ends' values and rates (what the steps can represent of it), as a share of the drive's
 /// largest rate over the run, before the run warns: 1 %, as [`LOAD_IMPULSE_WARN`].
@@ -344,6 +356,10 @@ pub struct RunStats {
     /// what each step's ends miss of its time factor, over ∫|factor| dt; see
     /// [`LOAD_IMPULSE_WARN`]); `None` without time factors or before any step.
     pub load_impulse_error: Option<f64>,
+    /// Largest distance of a load's time factor from the straight lines between the steps'
+    /// ends, ∫|s − ℓ| dt over ∫|s| dt (see [`LOAD_SAMPLING_WARN`]); `None` without time
+    /// factors or before any step.
+    pub load_sampling_error: Option<f64>,
     /// Largest departure of a drive's rate between step ends from what the steps represent
     /// of it, over the drive's largest rate (see [`DRIVE_RATE_WARN`]); `None` without
     /// time-dependent drives or before any step.
@@ -445,9 +461,11 @@ pub struct Integrator<'m> {
     damping_power: f64,
     /// per load with a time factor: the impulse of the factor integrated finely over each
     /// committed step less the trapezoid over the step's ends (what the steps apply), summed
-    /// with its sign, the finely integrated |factor| (see [`LOAD_IMPULSE_WARN`]), and the
-    /// largest |factor| sampled so far (the scale of the quadrature's tolerance)
-    load_impulse: Vec<(f64, f64, f64)>,
+    /// with its sign, the finely integrated |factor| (see [`LOAD_IMPULSE_WARN`]), the
+    /// largest |factor| sampled so far (the scale of the quadrature's tolerance), and the
+    /// integrated distance of the factor from the steps' straight lines (see
+    /// [`LOAD_SAMPLING_WARN`])
+    load_impulse: Vec<(f64, f64, f64, f64)>,
     /// per dof: the largest departure of its drive's rate found between step ends (see
     /// [`drive_departure`]), the largest |rate| sampled, and the drive's value and rate at
     /// the end of the last committed step (the next step's start)
@@ -562,7 +580,7 @@ impl<'m> Integrator<'m> {
             driver_power: 0.0,
             load_power: 0.0,
             damping_power: 0.0,
-            load_impulse: vec![(0.0, 0.0, 0.0); model.loads.len()],
+            load_impulse: vec![(0.0, 0.0, 0.0, 0.0); model.loads.len()],
             drive_departure: vec![(0.0, 0.0, None); model.dofs.len()],
         };
         it.initial_acceleration().await;
@@ -914,9 +932,10 @@ impl<'m> Integrator<'m> {
         for (l, acc) in self.model.loads.iter().zip(&mut self.load_impulse) {
             let Some(f) = &l.scale else { continue };
             let (s0, s1) = (f.eval(t0)[0], f.eval(t1)[0]);
-            let (fine, fine_abs, _) = factor_integral(f, t0, t1, &mut acc.2);
-            acc.0 += fine - 0.5 * h * (s0 + s1);
-            acc.1 += fine_abs;
+            let fi = factor_integral(f, t0, t1, &mut acc.2);
+            acc.0 += fi.sum - 0.5 * h * (s0 + s1);
+            acc.1 += fi.abs;
+            acc.3 += fi.off_line;
         }
     }
 
@@ -1306,9 +1325,33 @@ impl<'m> Integrator<'m> {
             .iter()
             .enumerate()
             .filter(|(k, _)| self.model.loads[*k].scale.is_some() && self.stats.steps > 0)
-            .map(|(k, (miss, total, _))| (k, if *total > 0.0 { miss / total } else { 0.0 }))
+            .map(|(k, (miss, total, _, _))| (k, if *total > 0.0 { miss / total } else { 0.0 }))
             .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
         st.load_impulse_error = missed.map(|(_, e)| e.abs());
+        let sampled = self
+            .load_impulse
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| self.model.loads[*k].scale.is_some() && self.stats.steps > 0)
+            .map(|(k, (_, total, _, off))| (k, if *total > 0.0 { off / total } else { 0.0 }))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        st.load_sampling_error = sampled.map(|(_, e)| e);
+        let aliased = sampled.filter(|(_, e)| *e > LOAD_SAMPLING_WARN);
+        if let Some((k, e)) =
+            aliased.filter(|_| !missed.is_some_and(|(_, m)| m.abs() > LOAD_IMPULSE_WARN))
+        {
+            let l = &self.model.loads[k];
+            st.notes.push(format!(
+                "time step too large for the loads: the time factor `{}` of load {} (on node \
+                 `{}`) strays from the straight lines between the steps' ends by {:.0} % of \
+                 its ∫|s| dt; it changes faster than the steps sample it (near or above \
+                 1/(2 dt)), and the steps apply it at a false, lower frequency; reduce dt",
+                l.scale.as_ref().map_or("", |f| &*f.source),
+                k + 1,
+                self.model.node_names[l.node],
+                100.0 * e,
+            ));
+        }
         if let Some((k, e)) = missed.filter(|(_, e)| e.abs() > LOAD_IMPULSE_WARN) {
             let l = &self.model.loads[k];
             st.notes.push(format!(
@@ -1481,9 +1524,8 @@ pub(crate) async fn run_member(
 /// ([`hidden_feature`], slack 1e-3 of its magnitude): the pulse is then found by
 /// bisection, and a merely loose enclosure stops after one level (without that rule
 /// `t - min(t, 100)` cost 1000 panels per step, 7× the rotating cantilever's run).
-/// `peak` carries the largest |s| sampled so far. Returns the two integrals and the
-/// panels integrated (the refinement's cost).
-fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> (f64, f64, usize) {
+/// `peak` carries the largest |s| sampled so far.
+fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> FactorIntegral {
     struct Panel {
         a: f64,
         b: f64,
@@ -1515,7 +1557,11 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> (f64, 
         });
         fa = fb;
     }
-    let (mut sum, mut sum_abs, mut panels, mut done) = (0.0, 0.0, LOAD_PANELS, 0);
+    let (mut sum, mut sum_abs, mut off_line, mut panels, mut done) =
+        (0.0, 0.0, 0.0, LOAD_PANELS, 0);
+    // the straight line through the step's end values: what the steps apply between them
+    let (s0, s1) = (s(t0), s(t1));
+    let line = |t: f64| s0 + (s1 - s0) * (t - t0) / (t1 - t0);
     while let Some(p) = stack.pop() {
         let m = 0.5 * (p.a + p.b);
         let (f1, f2) = (s(0.5 * (p.a + m)), s(0.5 * (m + p.b)));
@@ -1541,6 +1587,10 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> (f64, 
             let abs = |x: f64| x.abs();
             sum_abs += simpson(p.a, m, abs(p.fa), abs(f1), abs(p.fm))
                 + simpson(m, p.b, abs(p.fm), abs(f2), abs(p.fb));
+            let (q1, q3) = (0.5 * (p.a + m), 0.5 * (m + p.b));
+            let off = |t: f64, v: f64| (v - line(t)).abs();
+            off_line += simpson(p.a, m, off(p.a, p.fa), off(q1, f1), off(m, p.fm))
+                + simpson(m, p.b, off(m, p.fm), off(q3, f2), off(p.b, p.fb));
             continue;
         }
         panels += 2;
@@ -1556,7 +1606,25 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> (f64, 
             });
         }
     }
-    (sum, sum_abs, done)
+    FactorIntegral {
+        sum,
+        abs: sum_abs,
+        off_line,
+        panels: done,
+    }
+}
+
+/// What [`factor_integral`] finds of a time factor over one step.
+struct FactorIntegral {
+    /// ∫ s dt
+    sum: f64,
+    /// ∫ |s| dt
+    abs: f64,
+    /// ∫ |s − ℓ| dt, ℓ the straight line through the step's end values
+    off_line: f64,
+    /// panels integrated (the refinement's cost; read by the tests)
+    #[cfg_attr(not(test), allow(dead_code))]
+    panels: usize,
 }
 
 /// Whether a time function may hide a feature in the panel (a, b) that its samples there,
@@ -1767,6 +1835,12 @@ async fn run_accuracy(
             r.1.time_error_estimate
                 .unwrap_or(f64::INFINITY)
                 .max(r.1.load_impulse_error.unwrap_or(0.0))
+                // aliased loads: the estimate sees the false frequency's response
+                .max(
+                    r.1.load_sampling_error
+                        .filter(|e| *e > LOAD_SAMPLING_WARN)
+                        .unwrap_or(0.0),
+                )
                 .max(r.1.drive_rate_error.unwrap_or(0.0));
         history.push((h, err, r.1.steps));
         let interrupted = matches!(r.2, Some(DynamicsError::Interrupted { .. }));
@@ -1953,7 +2027,8 @@ mod tests {
 
     fn panels(src: &str, t0: f64, t1: f64) -> (f64, f64, usize) {
         let f = TimeFunction::new(src, &[]).unwrap();
-        factor_integral(&f, t0, t1, &mut 0.0)
+        let fi = factor_integral(&f, t0, t1, &mut 0.0);
+        (fi.sum, fi.abs, fi.panels)
     }
 
     #[test]

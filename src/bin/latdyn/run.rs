@@ -261,6 +261,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
             })),
             "time_error_estimate": stats.time_error_estimate,
             "load_impulse_error": stats.load_impulse_error,
+            "load_sampling_error": stats.load_sampling_error,
             "drive_rate_error": stats.drive_rate_error,
             "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
             "warnings": warnings,
