@@ -28,6 +28,19 @@ fn warnings(v: &Value) -> Vec<String> {
         .collect()
 }
 
+/// A shipped model with `from` replaced by `to` (which must occur), written to a file of
+/// its own under the temporary directory; the path is returned.
+fn shipped_with(model: &str, from: &str, to: &str, tag: &str) -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("models").join(model)).unwrap();
+    assert!(text.contains(from), "{model} has no `{from}`");
+    let dir = std::env::temp_dir().join(format!("latdyn-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(model);
+    std::fs::write(&path, text.replace(from, to)).unwrap();
+    path
+}
+
 /// Largest difference of a sensor's samples from a reference run's samples at the same
 /// times, over the reference's range (the same measure the estimate reports).
 fn history_error(run: &Value, reference: &Value, sensor: &str) -> f64 {
@@ -515,20 +528,12 @@ fn a_drive_jerk_between_the_steps_is_warned_and_a_smooth_drive_is_not() {
     // applied the jerk (hub torque peak 176 N·m against 1106 at dt = 1e-4, which resolves
     // it) and warned nothing. Now the drive check finds it (measured 0.9996 of the jerk's
     // rate). The shipped drive departs by round-off only (measured 1.2e-11).
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/spinup_beam.toml"),
-    )
-    .unwrap();
-    let smooth = "ws*(t - min(t,Ts))\"";
-    assert!(text.contains(smooth));
-    let jerk = text.replace(
-        smooth,
+    let path = shipped_with(
+        "spinup_beam.toml",
+        "ws*(t - min(t,Ts))\"",
         "ws*(t - min(t,Ts)) + 0.05*exp(-(((t - 2.0025)/2e-4)^2))\"",
+        "drive-jerk",
     );
-    let dir = std::env::temp_dir().join(format!("latdyn-drive-jerk-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("jerk.toml");
-    std::fs::write(&path, jerk).unwrap();
     let v = run_json(&[path.to_str().unwrap(), "--set", "t_end=3"]);
     assert!(v["drive_rate_error"].as_f64().unwrap() > 0.5, "{v}");
     assert!(
@@ -544,7 +549,7 @@ fn a_drive_jerk_between_the_steps_is_warned_and_a_smooth_drive_is_not() {
         "{shipped}"
     );
     assert!(warnings(&shipped).is_empty(), "{:?}", warnings(&shipped));
-    std::fs::remove_dir_all(&dir).ok();
+    std::fs::remove_dir_all(path.parent().unwrap()).ok();
 }
 
 #[test]
@@ -555,17 +560,12 @@ fn a_load_faster_than_the_steps_sample_it_is_warned_not_applied_at_an_alias() {
     // samples cancel over the run) and it warned nothing. The factor's distance from the
     // straight lines between the steps' ends reads 1.27 of its ∫|s| dt (limit 0.5; a
     // resolved sinusoid at 20 samples per period reads 0.008).
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/rotating_cantilever.toml"),
-    )
-    .unwrap();
-    let pulse = "scale = \"(1 - signum(t - t_pulse)) * sin(pi*t/t_pulse)^2\"";
-    assert!(text.contains(pulse));
-    let fast = text.replace(pulse, "scale = \"sin(2*pi*99*t)\"");
-    let dir = std::env::temp_dir().join(format!("latdyn-alias-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("alias.toml");
-    std::fs::write(&path, fast).unwrap();
+    let path = shipped_with(
+        "rotating_cantilever.toml",
+        "scale = \"(1 - signum(t - t_pulse)) * sin(pi*t/t_pulse)^2\"",
+        "scale = \"sin(2*pi*99*t)\"",
+        "alias",
+    );
     let p = path.to_str().unwrap();
     let coarse = run_json(&[p, "--set", "t_end=1"]);
     assert!(
@@ -593,5 +593,5 @@ fn a_load_faster_than_the_steps_sample_it_is_warned_not_applied_at_an_alias() {
     let shipped = run_json(&["models/rotating_cantilever.toml", "--set", "t_end=1"]);
     let e = shipped["load_sampling_error"].as_f64().unwrap();
     assert!(e > 0.05 && e < 0.15, "{e}");
-    std::fs::remove_dir_all(&dir).ok();
+    std::fs::remove_dir_all(path.parent().unwrap()).ok();
 }

@@ -824,22 +824,39 @@ struct RangeForm {
 impl RangeForm {
     fn new(source: &str, params: &dyn Scope) -> Option<Box<RangeForm>> {
         let expr = parse::<Interval>(source).ok()?;
-        let mut slot = None;
-        let mut vals = Vec::new();
-        for (i, n) in expr.var_names().iter().enumerate() {
-            if n == TIME {
-                slot = Some(i);
-                vals.push(Interval::point(0.0));
-            } else {
-                vals.push(Interval::point(lookup(n, params)?));
-            }
-        }
+        let (vals, slot) = variable_vector(&expr, source, params, Interval::point(0.0)).ok()?;
         Some(Box::new(RangeForm {
             expr,
             vals,
             slot: slot?,
         }))
     }
+}
+
+/// The values of an expression's variables in exmex's order, for flat evaluation: each
+/// parameter's value as a constant, `time` in the slot of `t` (returned, if `t` occurs).
+fn variable_vector<T>(
+    expr: &Expr<T>,
+    source: &str,
+    params: &dyn Scope,
+    time: T,
+) -> Result<(Vec<T>, Option<usize>), String>
+where
+    T: Clone + Debug + Default + FromStr + exmex::num::Float,
+    <T as FromStr>::Err: Debug,
+{
+    let mut slot = None;
+    let mut vals = Vec::new();
+    for (i, n) in expr.var_names().iter().enumerate() {
+        if n == TIME {
+            slot = Some(i);
+            vals.push(time);
+        } else {
+            let v = lookup(n, params).ok_or_else(|| undefined(n, source))?;
+            vals.push(T::from_f64(v));
+        }
+    }
+    Ok((vals, slot))
 }
 
 #[derive(Clone, Debug)]
@@ -940,17 +957,7 @@ impl TimeFunction {
     /// evaluation does not recurse, its substitution and differentiation do).
     fn long(source: &str, params: &dyn Scope) -> Result<TimeFunction, String> {
         let e = parse::<Jet>(source)?;
-        let mut slot = None;
-        let mut vals = Vec::new();
-        for (i, n) in e.var_names().iter().enumerate() {
-            if n == TIME {
-                slot = Some(i);
-                vals.push(Jet::variable(0.0));
-            } else {
-                let v = lookup(n, params).ok_or_else(|| undefined(n, source))?;
-                vals.push(Jet::constant(v));
-            }
-        }
+        let (vals, slot) = variable_vector(&e, source, params, Jet::variable(0.0))?;
         let kind = match slot {
             Some(k) => Kind::JetVars(Box::new(e), vals, k),
             None => Kind::Constant(

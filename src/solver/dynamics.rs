@@ -897,18 +897,19 @@ impl<'m> Integrator<'m> {
         self.energies.driver_work += 0.5 * h * (pw + self.driver_power);
         self.driver_power = pw;
         self.account_load_impulse(h);
-        self.account_drive_departure(h);
+        self.account_drive_departure();
     }
 
     /// What the committed step of size `h` (ending now) cannot represent of each drive: the
     /// largest departure of its rate from the cubic through the step ends
     /// ([`drive_departure`]).
-    fn account_drive_departure(&mut self, h: f64) {
-        let t1 = self.s.t;
+    fn account_drive_departure(&mut self) {
+        // the step's exact start, the last step's end (t1 − h need not be bit-equal to
+        // it, and the end values kept from the last step are then reused)
+        let (t0, t1) = (self.start.t, self.s.t);
         for (d, acc) in self.model.dofs.iter().zip(&mut self.drive_departure) {
             if let DofMode::Driven(f) = &d.mode {
                 if !f.is_constant() {
-                    let t0 = t1 - h;
                     let e0 = match acc.2 {
                         Some((t, e)) if t == t0 => e,
                         _ => f.eval_rate(t0),
@@ -931,9 +932,8 @@ impl<'m> Integrator<'m> {
         let t0 = t1 - h;
         for (l, acc) in self.model.loads.iter().zip(&mut self.load_impulse) {
             let Some(f) = &l.scale else { continue };
-            let (s0, s1) = (f.eval(t0)[0], f.eval(t1)[0]);
             let fi = factor_integral(f, t0, t1, &mut acc.2);
-            acc.0 += fi.sum - 0.5 * h * (s0 + s1);
+            acc.0 += fi.sum - 0.5 * h * (fi.ends.0 + fi.ends.1);
             acc.1 += fi.abs;
             acc.3 += fi.off_line;
         }
@@ -1319,22 +1319,27 @@ impl<'m> Integrator<'m> {
             Some(_) => f64::INFINITY,
             None => TIME_ERROR_WARN,
         };
-        // a factor that stayed zero has no impulse to miss
-        let missed = self
+        // per load with a time factor: (index, missed share with its sign, share off the
+        // steps' lines); a factor that stayed zero has neither
+        let shares: Vec<(usize, f64, f64)> = self
             .load_impulse
             .iter()
             .enumerate()
             .filter(|(k, _)| self.model.loads[*k].scale.is_some() && self.stats.steps > 0)
-            .map(|(k, (miss, total, _, _))| (k, if *total > 0.0 { miss / total } else { 0.0 }))
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+            .map(|(k, (miss, total, _, off))| match *total > 0.0 {
+                true => (k, miss / total, off / total),
+                false => (k, 0.0, 0.0),
+            })
+            .collect();
+        let largest = |share: fn(&(usize, f64, f64)) -> f64| {
+            shares
+                .iter()
+                .map(|x| (x.0, share(x)))
+                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        };
+        let missed = largest(|x| x.1);
         st.load_impulse_error = missed.map(|(_, e)| e.abs());
-        let sampled = self
-            .load_impulse
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| self.model.loads[*k].scale.is_some() && self.stats.steps > 0)
-            .map(|(k, (_, total, _, off))| (k, if *total > 0.0 { off / total } else { 0.0 }))
-            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let sampled = largest(|x| x.2);
         st.load_sampling_error = sampled.map(|(_, e)| e);
         let aliased = sampled.filter(|(_, e)| *e > LOAD_SAMPLING_WARN);
         if let Some((k, e)) =
@@ -1540,11 +1545,13 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> Factor
     let simpson = |a: f64, b: f64, fa: f64, fm: f64, fb: f64| (b - a) / 6.0 * (fa + 4.0 * fm + fb);
     let h = (t1 - t0) / LOAD_PANELS as f64;
     let mut stack = Vec::with_capacity(2 * LOAD_PANELS);
-    let mut fa = s(t0);
+    let (s0, s1) = (s(t0), s(t1));
+    let mut fa = s0;
     for k in 0..LOAD_PANELS {
         let a = t0 + h * k as f64;
-        let b = if k + 1 == LOAD_PANELS { t1 } else { a + h };
-        let (fm, fb) = (s(0.5 * (a + b)), s(b));
+        let last = k + 1 == LOAD_PANELS;
+        let b = if last { t1 } else { a + h };
+        let (fm, fb) = (s(0.5 * (a + b)), if last { s1 } else { s(b) });
         stack.push(Panel {
             a,
             b,
@@ -1560,7 +1567,6 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> Factor
     let (mut sum, mut sum_abs, mut off_line, mut panels, mut done) =
         (0.0, 0.0, 0.0, LOAD_PANELS, 0);
     // the straight line through the step's end values: what the steps apply between them
-    let (s0, s1) = (s(t0), s(t1));
     let line = |t: f64| s0 + (s1 - s0) * (t - t0) / (t1 - t0);
     while let Some(p) = stack.pop() {
         let m = 0.5 * (p.a + p.b);
@@ -1607,6 +1613,7 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> Factor
         }
     }
     FactorIntegral {
+        ends: (s0, s1),
         sum,
         abs: sum_abs,
         off_line,
@@ -1616,6 +1623,8 @@ fn factor_integral(f: &TimeFunction, t0: f64, t1: f64, peak: &mut f64) -> Factor
 
 /// What [`factor_integral`] finds of a time factor over one step.
 struct FactorIntegral {
+    /// s(t0), s(t1): all the integrator sees of the factor
+    ends: (f64, f64),
     /// ∫ s dt
     sum: f64,
     /// ∫ |s| dt
