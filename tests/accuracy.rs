@@ -41,6 +41,19 @@ fn shipped_with(model: &str, from: &str, to: &str, tag: &str) -> std::path::Path
     path
 }
 
+/// The shipped four-bar with its cranks at rest while the coupler moves at v0, as it
+/// was shipped until session 20 (`consistent_velocity = false`): the coupler strikes the
+/// cranks at t = 0 and they ring above 1/dt at every practical step, a hard case for the
+/// estimate that the shipped scene no longer is.
+fn fourbar_at_rest(tag: &str) -> std::path::PathBuf {
+    shipped_with(
+        "fourbar.toml",
+        "consistent_velocity = true",
+        "consistent_velocity = false",
+        tag,
+    )
+}
+
 /// Largest difference of a sensor's samples from a reference run's samples at the same
 /// times, over the reference's range (the same measure the estimate reports).
 fn history_error(run: &Value, reference: &Value, sensor: &str) -> f64 {
@@ -80,6 +93,8 @@ fn history_error(run: &Value, reference: &Value, sensor: &str) -> f64 {
 #[test]
 fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
     // each of these is 7 % to 17× off the converged answer (issue 14); each must say so
+    let at_rest = fourbar_at_rest("issue-runs");
+    let at_rest = at_rest.to_str().unwrap();
     let cases: [(&str, Vec<&str>, &[&str]); 5] = [
         (
             "models/spinup_beam.toml",
@@ -100,10 +115,11 @@ fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
             vec!["dt=0.05"],
             &["mid_moment"],
         ),
-        // 10× its step the four-bar's hinge histories are 0.2-0.5 of their range off;
-        // that error is in the rates, so only the velocity part of the estimate sees it
-        // (the two ground hinges turn alike: either may be named)
-        ("models/fourbar.toml", vec!["dt=0.02"], &["g1", "g2"]),
+        // the four-bar as the issue ran it, its cranks at rest while the coupler moves
+        // (see `fourbar_at_rest`): at 10× its step the hinge histories are 0.2-0.5 of
+        // their range off; that error is in the rates, so only the velocity part of the
+        // estimate sees it (the two ground hinges turn alike: either may be named)
+        (at_rest, vec!["dt=0.02"], &["g1", "g2"]),
     ];
     for (model, sets, sensor) in cases {
         let mut args = vec![model];
@@ -127,11 +143,34 @@ fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
 
 #[test]
 fn converged_runs_carry_no_time_error_warning() {
-    // the spin-up beam and the pendulum at their shipped steps are within 1e-3 of dt/4
-    for model in ["models/spinup_beam.toml", "models/pendulum.toml"] {
+    // the spin-up beam and the pendulum at their shipped steps are within 1e-3 of dt/4;
+    // the four-bar, started consistently, within 6e-5 of dt = 3.1e-5 (its estimate
+    // 1.1e-3 over-reads, below the 1 % limit)
+    for model in [
+        "models/spinup_beam.toml",
+        "models/pendulum.toml",
+        "models/fourbar.toml",
+    ] {
         let v = run_json(&[model]);
         assert!(warnings(&v).is_empty(), "{model}: {:?}", warnings(&v));
         assert!(v["time_error_estimate"].as_f64().unwrap() < 1e-2, "{v}");
+    }
+}
+
+#[test]
+fn the_four_bar_started_consistently_is_within_one_percent_at_ten_times_its_step() {
+    // Issue 14 listed the four-bar at 10× its step 7-12 % off and silent. Its hinge
+    // error was the cranks' ringing from the inconsistent start; started consistently
+    // (the shipped scene since session 20) the hinge histories at dt = 0.02 (run as steps
+    // of 0.01, the output interval) are within 1.4e-3 of their range of a run at
+    // 1.25e-4 s, whose own error is below 2e-5 (measured: 6e-5 at 0.002, 9e-6 at 5e-4
+    // against 3.1e-5). Its estimate still reads 0.35 and warns: a false alarm on the safe
+    // side (the four-bar's hinge rates over-read, README "Accuracy").
+    let base = run_json(&["models/fourbar.toml", "--set", "dt=0.02"]);
+    let fine = run_json(&["models/fourbar.toml", "--set", "dt=0.000125"]);
+    for sensor in ["g1", "g2", "c1", "c2"] {
+        let off = history_error(&base, &fine, sensor);
+        assert!(off < 1e-2, "{sensor}: {off:.3e} of its range off");
     }
 }
 
@@ -161,7 +200,8 @@ fn the_estimate_is_within_a_factor_three_of_the_true_time_error() {
 
 #[test]
 fn the_estimate_of_hinge_rates_does_not_under_read_where_the_step_misses_the_vibration() {
-    // At 10x its step the four-bar's hinge rates carry the cranks' vibration above 1/dt,
+    // At 10x its step the four-bar launched with its cranks at rest (`fourbar_at_rest`)
+    // has hinge rates that carry the cranks' vibration above 1/dt,
     // and their error does not converge with dt (0.23-0.37 of the range from dt = 0.01 to
     // 0.00125 against dt = 0.0003125): the estimate must say "large", not how large. The
     // transported error of a vibration whose phase is lost grows past the truth (a linear
@@ -169,14 +209,10 @@ fn the_estimate_of_hinge_rates_does_not_under_read_where_the_step_misses_the_vib
     // linearisation); it is capped at twice the range. Measured: g1 and c1 at the cap, 2,
     // against 0.31 and 0.38. Hinge rates in a converging run are checked by the blade's
     // flap angle above (its second component is the rate).
-    let base = run_json(&["models/fourbar.toml", "--set", "v0=0.2", "--set", "dt=0.02"]);
-    let fine = run_json(&[
-        "models/fourbar.toml",
-        "--set",
-        "v0=0.2",
-        "--set",
-        "dt=0.00125",
-    ]);
+    let at_rest = fourbar_at_rest("hinge-rates");
+    let at_rest = at_rest.to_str().unwrap();
+    let base = run_json(&[at_rest, "--set", "v0=0.2", "--set", "dt=0.02"]);
+    let fine = run_json(&[at_rest, "--set", "v0=0.2", "--set", "dt=0.00125"]);
     for sensor in ["g1", "c1"] {
         let truth = history_error(&base, &fine, sensor);
         let est = base["time_error_by_sensor"][sensor].as_f64().unwrap();
@@ -594,4 +630,27 @@ fn a_load_faster_than_the_steps_sample_it_is_warned_not_applied_at_an_alias() {
     let e = shipped["load_sampling_error"].as_f64().unwrap();
     assert!(e > 0.05 && e < 0.15, "{e}");
     std::fs::remove_dir_all(path.parent().unwrap()).ok();
+}
+
+#[test]
+fn a_time_error_after_a_hinge_lock_names_the_lock_as_its_likely_cause() {
+    // The Mini-Mast bay's diagonal mid-hinges lock at t ≈ 0.985 s; the member forces the
+    // lock sets ringing do not converge at any step tried (README "Accuracy"). The
+    // warning must say so, not only "reduce dt". Before the lock, nothing to add.
+    let v = run_json(&["models/minimast_bay.toml"]);
+    let w = warnings(&v);
+    let time = w
+        .iter()
+        .find(|w| w.contains("time step too large for the frequencies"))
+        .unwrap_or_else(|| panic!("{w:?}"));
+    assert!(
+        time.contains("locked at t = 0.98") && time.contains("a lock is an impact"),
+        "{time}"
+    );
+    let early = run_json(&["models/minimast_bay.toml", "--set", "t_end=0.5"]);
+    assert!(
+        warnings(&early).iter().all(|w| !w.contains("locked at")),
+        "{:?}",
+        warnings(&early)
+    );
 }

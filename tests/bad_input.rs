@@ -65,6 +65,12 @@ const CASES: &[(&str, usize, &str, &str)] = &[
         "needs a body rotation driven at a constant rate",
     ),
     (
+        "consistent_velocity_with_steady_start.toml",
+        80,
+        "initial.consistent_velocity",
+        "strains nothing already",
+    ),
+    (
         "accuracy_below_newton_tolerance.toml",
         31,
         "solver.accuracy",

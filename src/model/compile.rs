@@ -18,6 +18,16 @@ use crate::math::*;
 
 type Result<T> = std::result::Result<T, ModelError>;
 
+/// What `[initial]` asks for (see [`crate::model::spec::InitialSpec`]).
+#[derive(Default)]
+struct InitialStart {
+    rotation: Option<(Vec3, Vec3)>,
+    /// the span of `steady = true`, for the check that needs the compiled model
+    steady: Option<Range<usize>>,
+    /// `consistent_velocity` as written (None: not written)
+    consistent_velocity: Option<bool>,
+}
+
 /// Reads and compiles a model file; `overrides` replace parameter values (`--set`).
 pub fn load(path: &Path, overrides: &[(String, f64)]) -> Result<Model> {
     load_refined(path, overrides, 1)
@@ -271,28 +281,56 @@ impl Compiler<'_> {
 
     /// `[initial]`: a rigid rotation (ω, center), or the span of `steady = true`.
     #[allow(clippy::type_complexity)]
-    fn initial(
-        &self,
-        sec: &Spanned<InitialSpec>,
-    ) -> Result<(Option<(Vec3, Vec3)>, Option<Range<usize>>)> {
+    /// `[initial]`: the rigid rotation (ω, centre), the span of `steady = true`, and
+    /// whether the velocity is made consistent (`consistent_velocity = true`).
+    fn initial(&self, sec: &Spanned<InitialSpec>) -> Result<InitialStart> {
         const BOTH: &str = "give `angular_velocity` or `steady = true`, not both: a steady \
                             start takes its rotation from the hub's drive";
-        const NEITHER: &str = "`[initial]` needs `angular_velocity` (a rigid rotation) or \
-                               `steady = true` (the steady rotation of a constant-speed hub)";
+        const NEITHER: &str = "`[initial]` needs `angular_velocity` (a rigid rotation), \
+                               `steady = true` (the steady rotation of a constant-speed hub) \
+                               or `consistent_velocity = true`";
         const CENTER: &str = "a steady start turns about the hub's own axis: remove `center`";
+        const STEADY_CONSISTENT: &str = "a steady start's velocity strains nothing already \
+                                         (rigid rotation with the hub): remove \
+                                         `consistent_velocity`";
         let ini = sec.get_ref();
         let steady = ini.steady.as_ref().filter(|s| *s.get_ref());
+        let consistent = ini.consistent_velocity.as_ref().filter(|c| *c.get_ref());
+        if let (Some(c), Some(_)) = (consistent, steady) {
+            return Err(self.err(c.span(), "initial.consistent_velocity", STEADY_CONSISTENT));
+        }
+        let consistent_velocity = ini.consistent_velocity.as_ref().map(|c| *c.get_ref());
         match (&ini.angular_velocity, steady) {
             (Some(w), None) => {
                 let omega = self.vec3(w, "initial.angular_velocity")?;
                 let center = self.opt_vec3(&ini.center, "initial.center")?;
-                Ok((Some((omega, center)), None))
+                Ok(InitialStart {
+                    rotation: Some((omega, center)),
+                    steady: None,
+                    consistent_velocity,
+                })
             }
             (None, Some(st)) => match &ini.center {
                 Some(c) => Err(self.err(c.span(), "initial.center", CENTER)),
-                None => Ok((None, Some(st.span()))),
+                None => Ok(InitialStart {
+                    rotation: None,
+                    steady: Some(st.span()),
+                    consistent_velocity,
+                }),
             },
             (Some(w), Some(_)) => Err(self.err(w.span(), "initial.angular_velocity", BOTH)),
+            (None, None) if ini.consistent_velocity.is_some() => match &ini.center {
+                Some(c) => Err(self.err(
+                    c.span(),
+                    "initial.center",
+                    "`center` belongs to `angular_velocity`: give both or neither",
+                )),
+                None => Ok(InitialStart {
+                    rotation: None,
+                    steady: None,
+                    consistent_velocity,
+                }),
+            },
             (None, None) => Err(self.err(sec.span(), "initial.angular_velocity", NEITHER)),
         }
     }
@@ -726,10 +764,11 @@ impl Compiler<'_> {
                 scale,
             });
         }
-        let (initial_rotation, initial_steady) = match &spec.initial {
-            None => (None, None),
+        let start = match &spec.initial {
+            None => InitialStart::default(),
             Some(sec) => self.initial(sec)?,
         };
+        let (initial_rotation, initial_steady) = (start.rotation, start.steady);
         let gravity = match &spec.environment {
             Some(e) => self.opt_vec3(&e.get_ref().gravity, "environment.gravity")?,
             None => [0.0; 3],
@@ -798,6 +837,7 @@ impl Compiler<'_> {
             n_eq,
             initial_rotation,
             initial_steady: initial_steady.is_some(),
+            initial_consistent_velocity: start.consistent_velocity,
             repeats,
             hinge_of_dof,
             elem_data,

@@ -339,13 +339,16 @@ pub struct RepeatSpec {
 
 /// `[initial]`: the whole model starts in rigid rotation with `angular_velocity` about
 /// `center` (default the origin), or, with `steady = true`, in the steady rotation of its
-/// constant-speed hub (centrifugally stretched, at rest in the rotating frame).
+/// constant-speed hub (centrifugally stretched, at rest in the rotating frame); with
+/// `consistent_velocity = true` the coordinates without an `initial_rate` take the
+/// velocity that strains nothing, given the rates that are set.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSpec {
     pub angular_velocity: Option<Spanned<Vector>>,
     pub center: Option<Spanned<Vector>>,
     pub steady: Option<Spanned<bool>>,
+    pub consistent_velocity: Option<Spanned<bool>>,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]

@@ -338,6 +338,11 @@ pub struct Model {
     /// constant-speed hub ([`crate::solver::rotating::steady_start`]) instead of the
     /// unstretched reference
     pub initial_steady: bool,
+    /// `[initial] consistent_velocity`: `Some(true)`, the free coordinates without an
+    /// explicit initial rate start with the velocity that strains nothing
+    /// ([`crate::solver::start`]); `None` (not written), the start is checked and a
+    /// velocity that strains the structure is warned; `Some(false)`, taken as given
+    pub initial_consistent_velocity: Option<bool>,
     /// what each `[[repeat]]` generated (empty for a file without repeats)
     pub repeats: Vec<super::repeat::RepeatSummary>,
     /// each element's undeformed constants (reference frame, chord, length, section) in

@@ -44,6 +44,8 @@ pub enum DynamicsError {
     Linear(#[from] crate::linalg::LinalgError),
     #[error("`[initial] steady`: {0}")]
     SteadyStart(String),
+    #[error("`[initial] consistent_velocity`: {0}")]
+    ConsistentStart(String),
 }
 
 impl DynamicsError {
@@ -54,7 +56,9 @@ impl DynamicsError {
             | DynamicsError::Stalled { t, .. }
             | DynamicsError::Interrupted { t }
             | DynamicsError::NonFiniteInput { t, .. } => *t,
-            DynamicsError::Linear(_) | DynamicsError::SteadyStart(_) => 0.0,
+            DynamicsError::Linear(_)
+            | DynamicsError::SteadyStart(_)
+            | DynamicsError::ConsistentStart(_) => 0.0,
         }
     }
 }
@@ -371,6 +375,10 @@ pub struct RunStats {
     /// reports only (0 and None in campaign variants, which do not report them)
     pub matrix_nnz: usize,
     pub factor_nnz: Option<usize>,
+    /// `[initial] consistent_velocity`: what the start changed (`None` without it)
+    pub consistent_start: Option<super::start::ConsistentStart>,
+    /// the first hinge lock of the run: (hinge, time [s])
+    pub first_lock: Option<(usize, f64)>,
 }
 
 impl RunStats {
@@ -583,6 +591,38 @@ impl<'m> Integrator<'m> {
             load_impulse: vec![(0.0, 0.0, 0.0, 0.0); model.loads.len()],
             drive_departure: vec![(0.0, 0.0, None); model.dofs.len()],
         };
+        let apply = match (model.initial_steady, model.initial_consistent_velocity) {
+            // a steady start strains nothing; `false` takes the velocity as given
+            (true, _) | (false, Some(false)) => None,
+            (false, Some(true)) => Some(true),
+            (false, None) => Some(false),
+        };
+        if let Some(apply) = apply {
+            let mut s = it.s.clone();
+            let mut c = super::start::consistent_velocity(
+                model,
+                &it.asm,
+                &mut it.sys,
+                &mut s,
+                it.coord_scale,
+            )
+            .await
+            .map_err(DynamicsError::ConsistentStart);
+            if apply {
+                it.s.v.copy_from_slice(&s.v);
+                it.start.v.copy_from_slice(&s.v);
+                it.trial.v.copy_from_slice(&s.v);
+            }
+            if let Ok(c) = &mut c {
+                c.applied = apply;
+            }
+            match c {
+                Ok(c) => it.stats.consistent_start = Some(c),
+                // a check that cannot be made is no reason not to run as given
+                Err(e) if apply => return Err(e),
+                Err(_) => {}
+            }
+        }
         it.initial_acceleration().await;
         let y0 = it.sample();
         for (k, y) in y0.iter().enumerate() {
@@ -1190,6 +1230,7 @@ impl<'m> Integrator<'m> {
                     self.s.q[h.dof] = la;
                 }
                 self.s.locked[ih] = true;
+                self.stats.first_lock.get_or_insert((ih, self.s.t));
                 self.prev_h = 0.0;
                 self.te.h_prev = 0.0;
                 if let Some(k) = self.model.dofs[h.dof].eq {
@@ -1397,11 +1438,47 @@ impl<'m> Integrator<'m> {
                 100.0 * e,
             ));
         }
+        if let Some(c) = st
+            .consistent_start
+            .filter(|c| !c.applied && c.kinetic_share > super::start::KINETIC_SHARE_WARN)
+        {
+            st.notes.push(format!(
+                "the initial velocity strains the structure: {} of its kinetic energy is in \
+                 motions the members resist (a body or hinge given a rate, the members \
+                 attached to it left at rest?); they ring from t = 0, at frequencies the step \
+                 may not resolve; `[initial] consistent_velocity = true` starts them \
+                 strain-free, `= false` takes the velocity as intended",
+                match c.kinetic_share.is_finite() {
+                    true => format!("{:.2} %", 100.0 * c.kinetic_share),
+                    false => "all".to_string(),
+                },
+            ));
+        }
+        if let Some(c) = st
+            .consistent_start
+            .filter(|c| c.applied && c.strain_rate_left > super::start::STRAIN_RATE_WARN)
+        {
+            st.notes.push(format!(
+                "`[initial] consistent_velocity`: after {} passes the start still strains the \
+                 structure at {:.1e} of the rate it was given (stiff and soft parts far \
+                 apart?); the run starts with that vibration",
+                c.passes, c.strain_rate_left,
+            ));
+        }
         if let Some((k, e)) = worst.filter(|(_, e)| *e > limit) {
+            // a lock is the other likely cause: an impact rings what it strikes
+            let lock = st.first_lock.map_or(String::new(), |(h, t)| {
+                format!(
+                    "; hinge `{}` locked at t = {t:.6} s: a lock is an impact, and the members \
+                     it strikes ring at their own (axial) frequencies, which a smaller dt \
+                     resolves only when it resolves them",
+                    self.model.hinges[h].name
+                )
+            });
             st.notes.push(format!(
                 "time step too large for the frequencies present: the estimated \
                  time-discretisation error of sensor `{}` is {:.2} % of its range (limit {} %); \
-                 reduce dt or run with --accuracy",
+                 reduce dt or run with --accuracy{lock}",
                 self.model.sensors[k].name,
                 100.0 * e,
                 100.0 * limit

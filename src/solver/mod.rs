@@ -7,6 +7,7 @@ pub mod linear;
 pub mod modes;
 pub mod path;
 pub mod rotating;
+pub mod start;
 pub mod statics;
 
 use crate::assembly::Assembler;
