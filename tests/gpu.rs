@@ -1063,3 +1063,46 @@ fn a_gpu_batch_gives_each_variant_its_lone_gpu_history_bit_for_bit() {
         }
     }
 }
+
+#[test]
+fn a_consistent_start_on_the_f32_kernels_gives_the_cpu_start() {
+    // The start differences the static residual along the initial motion: in f32 that is
+    // only as good as the kernels' forces relative to the deformation (cancellation-free
+    // strains). Measured on the four-bar: the f32 start's largest rate change 6e-8 off
+    // the CPU's, and the first sample of the hinge rate 1e-7 off; 1e-5 leaves room for
+    // another adapter's rounding and is 3000× below the 3 % a too-large difference step
+    // gave (src/solver/start.rs, `PROBE`).
+    let test = "a_consistent_start_on_the_f32_kernels_gives_the_cpu_start";
+    if adapters_or_skip(test).is_empty() {
+        return;
+    }
+    let Some(ctx) = preferred_context(test, Precision::F32) else {
+        return;
+    };
+    let m = common::shipped("fourbar.toml", &[("t_end", 0.02)]);
+    let run = |eval: Option<Arc<dyn ElementEval>>| {
+        let ctx = latdyn::solver::dynamics::RunContext {
+            eval,
+            ..Default::default()
+        };
+        let (h, stats, err) = latdyn::solver::dynamics::run_in(&m, &ctx, |_, _| {});
+        assert!(err.is_none(), "{err:?}");
+        let g1 = h.values[m.sensor_index("g1").unwrap()][1][1];
+        (stats.consistent_start.unwrap(), g1)
+    };
+    let (cpu, g1_cpu) = run(None);
+    let gpu_eval: Arc<dyn ElementEval> = Arc::new(gpu::GpuEval::new(ctx));
+    let (f32s, g1_f32) = run(Some(gpu_eval));
+    assert!(cpu.applied && f32s.applied);
+    let off = (f32s.largest_change - cpu.largest_change).abs() / cpu.largest_change;
+    assert!(
+        off < 1e-5,
+        "largest change {} against {}",
+        f32s.largest_change,
+        cpu.largest_change
+    );
+    assert!(
+        (g1_f32 - g1_cpu).abs() < 1e-5 * g1_cpu.abs(),
+        "{g1_f32} against {g1_cpu}"
+    );
+}
