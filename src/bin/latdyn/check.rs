@@ -73,6 +73,25 @@ pub(crate) fn check(a: &CheckArgs) -> anyhow::Result<()> {
     }
 }
 
+/// How a run of `m` starts (`[initial]`), in a few words.
+fn start(m: &latdyn::model::Model) -> String {
+    let mut s = match (m.initial_steady, m.initial_rotation) {
+        (true, _) => "steady rotation of the hub".to_string(),
+        (false, Some((w, c))) => format!(
+            "rigid rotation at [{}, {}, {}] rad/s about [{}, {}, {}]",
+            w[0], w[1], w[2], c[0], c[1], c[2]
+        ),
+        (false, None) => "the reference configuration".to_string(),
+    };
+    s += match m.initial_consistent_velocity {
+        Some(true) => ", the rates not given strain-free (consistent_velocity)",
+        Some(false) => ", rates as given",
+        None if m.initial_steady => "",
+        None => ", rates as given (warned if they strain the structure)",
+    };
+    s
+}
+
 pub(crate) fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
     let m = args.load()?;
     let driven = m
@@ -133,6 +152,7 @@ pub(crate) fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
         );
         s += &format!("  loads     {}\n", m.loads.len());
         s += &format!("  sensors   {} [{}]\n", sensors.len(), sensors.join(", "));
+        s += &format!("  start     {}\n", start(&m));
         for r in &m.repeats {
             let made: Vec<String> = latdyn::model::repeat::KINDS
                 .iter()
