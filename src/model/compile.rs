@@ -279,8 +279,6 @@ impl Compiler<'_> {
         ModelError::at(self.file, self.text, span, field, msg)
     }
 
-    /// `[initial]`: a rigid rotation (ω, center), or the span of `steady = true`.
-    #[allow(clippy::type_complexity)]
     /// `[initial]`: the rigid rotation (ω, centre), the span of `steady = true`, and
     /// whether the velocity is made consistent (`consistent_velocity = true`).
     fn initial(&self, sec: &Spanned<InitialSpec>) -> Result<InitialStart> {
