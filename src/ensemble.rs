@@ -256,11 +256,22 @@ pub fn grid(ranges: &[Range]) -> Vec<Vec<(String, f64)>> {
     out
 }
 
-/// Variants from a CSV file: a header of parameter names, one row of values per variant.
+/// A CSV field without its surrounding white space and one pair of double quotes.
+fn unquote(field: &str) -> &str {
+    let f = field.trim();
+    f.strip_prefix('"')
+        .and_then(|x| x.strip_suffix('"'))
+        .map_or(f, str::trim)
+}
+
+/// Variants from a CSV file: a header of parameter names, one row of values per variant
+/// (fields may be quoted; a leading byte-order mark is skipped).
 pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, EnsembleError> {
     let lim = model::Limits::from_env().map_err(EnsembleError::Invalid)?;
     let text = model::limits::read_capped(path, lim.model_bytes, "--variants file")
         .map_err(|e| EnsembleError::Invalid(format!("{}: {e}", path.display())))?;
+    // a spreadsheet's export may begin with a byte-order mark and quote its fields
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let mut lines = text
         .lines()
         .enumerate()
@@ -268,7 +279,7 @@ pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, Ensembl
     let (_, header) = lines
         .next()
         .ok_or_else(|| EnsembleError::Invalid(format!("{}: empty file", path.display())))?;
-    let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
+    let names: Vec<String> = header.split(',').map(|s| unquote(s).to_string()).collect();
     for (i, n) in names.iter().enumerate() {
         if n.is_empty() {
             return Err(EnsembleError::Invalid(format!(
@@ -300,7 +311,7 @@ pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, Ensembl
                 )
             )));
         }
-        let vals: Vec<&str> = line.split(',').map(str::trim).collect();
+        let vals: Vec<&str> = line.split(',').map(unquote).collect();
         if vals.len() != names.len() {
             return Err(EnsembleError::Invalid(format!(
                 "{}:{}: {} values for {} columns",
@@ -1042,4 +1053,25 @@ pub fn summarize(m: &Model, h: &dynamics::History) -> Vec<SensorSummary> {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_spreadsheet_export_with_a_byte_order_mark_and_quotes_reads_as_plain_csv() {
+        let dir = std::env::temp_dir().join(format!("latdyn-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("variants.csv");
+        std::fs::write(
+            &path,
+            "\u{feff}\"omega\", EI\r\n\"1.5\",2\r\n3, \" 4 \"\r\n",
+        )
+        .unwrap();
+        let rows = super::read_variants_csv(&path).unwrap();
+        let want = vec![
+            vec![("omega".to_string(), 1.5), ("EI".to_string(), 2.0)],
+            vec![("omega".to_string(), 3.0), ("EI".to_string(), 4.0)],
+        ];
+        assert_eq!(rows, want);
+    }
 }
