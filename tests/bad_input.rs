@@ -331,3 +331,36 @@ fn mini_mast_bay_count_outside_one_to_eighteen_is_refused_at_its_parameter() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+#[test]
+fn an_output_that_is_an_input_file_is_refused_and_the_input_kept() {
+    // `run m.toml -o m.toml` replaced the model with the results (exit 0), and so did
+    // `sweep --variants v.csv -o v.csv` with the variant table
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pendulum.toml"),
+    )
+    .unwrap();
+    let model = temp("self.toml", &text);
+    let m = model.to_str().unwrap();
+    usage_error(&["run", m, "-o", m], "it is the model file");
+    usage_error(
+        &["sweep", m, "--vary", "theta0=0.1:0.2:2", "-o", m],
+        "it is the model file",
+    );
+    let csv = temp("self.csv", "theta0\n0.1\n");
+    let c = csv.to_str().unwrap();
+    usage_error(
+        &["sweep", m, "--variants", c, "-o", c],
+        "it is the --variants file",
+    );
+    // by another name: a hard link is the same file
+    let link = std::env::temp_dir().join(format!("latdyn_bad_{}_link.toml", std::process::id()));
+    let _ = std::fs::remove_file(&link);
+    std::fs::hard_link(&model, &link).unwrap();
+    usage_error(
+        &["run", m, "-o", link.to_str().unwrap()],
+        "it is the model file",
+    );
+    assert_eq!(std::fs::read_to_string(&model).unwrap(), text);
+    assert_eq!(std::fs::read_to_string(&csv).unwrap(), "theta0\n0.1\n");
+}

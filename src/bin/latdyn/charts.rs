@@ -78,7 +78,7 @@ pub(crate) fn plot(args: &PlotArgs) -> anyhow::Result<()> {
     let c = lp::Campaign::open(&args.input)?;
     // the chart follows the output policy of run and sweep (no symlinks or special files,
     // locked, atomic replace): it is drawn to a sibling and moved into place at the end
-    let target = claim_output(&args.output)?;
+    let target = claim_output(&args.output, &[(args.input.as_path(), "the campaign file")])?;
     let staging = Staging(staging_path(&args.output));
     let summary = plot_to(args, &opts, &c, &staging.0)?;
     let bytes = std::fs::read(&staging.0)

@@ -169,8 +169,32 @@ pub(crate) fn stop_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
 }
 
 /// Claim an output path before any simulation; a refusal is a usage error (exit 2).
-pub(crate) fn claim_output(path: &std::path::Path) -> anyhow::Result<latdyn::output::OutputTarget> {
+/// `inputs` are the files the command reads, each with what it is ("the model file"):
+/// an output that is one of them (the same file, by any name or hard link) is refused,
+/// as `run m.toml -o m.toml` replaced the model with the results.
+pub(crate) fn claim_output(
+    path: &std::path::Path,
+    inputs: &[(&std::path::Path, &str)],
+) -> anyhow::Result<latdyn::output::OutputTarget> {
+    for (input, what) in inputs {
+        if same_file(path, input) {
+            anyhow::bail!(
+                "cannot write output {}: it is {what} ({}); write the output elsewhere",
+                path.display(),
+                input.display()
+            );
+        }
+    }
     latdyn::output::OutputTarget::claim(path).map_err(|e| anyhow!("{e}"))
+}
+
+/// Whether two paths name one existing file (same device and inode).
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+        _ => false,
+    }
 }
 
 pub(crate) fn is_csv(path: &std::path::Path) -> bool {

@@ -139,7 +139,12 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     if let Some(note) = spread_note(&m) {
         eprintln!("{note}");
     }
-    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let model_file = [(args.model.model.as_path(), "the model file")];
+    let target = args
+        .output
+        .as_deref()
+        .map(|p| claim_output(p, &model_file))
+        .transpose()?;
     let (stage, _gpu) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
     let mut sink = match target {
         Some(t) => Some(RunSink::open(&m, t, &stage).map_err(|e| anyhow!("{e}"))?),

@@ -63,7 +63,12 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     let m = args.model.load()?;
     let opts = args.path.options(&m)?;
     path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
-    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let model_file = [(args.model.model.as_path(), "the model file")];
+    let target = args
+        .output
+        .as_deref()
+        .map(|p| claim_output(p, &model_file))
+        .transpose()?;
     let t0 = std::time::Instant::now();
     let r = path::follow(&m, &opts);
     let wall = t0.elapsed().as_secs_f64();

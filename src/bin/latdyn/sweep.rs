@@ -10,6 +10,16 @@ use crate::{
     EXIT_INTERRUPTED, EXIT_OUTPUT, EXIT_USAGE,
 };
 
+/// The files a sweep reads, for [`claim_output`]: the model and the `--variants` table
+/// (not `--resume`'s campaign, which it completes in place).
+fn sweep_inputs(args: &SweepArgs) -> Vec<(&std::path::Path, &'static str)> {
+    let mut v = vec![(args.model.model.as_path(), "the model file")];
+    if let Some(csv) = &args.variants {
+        v.push((csv.as_path(), "the --variants file"));
+    }
+    v
+}
+
 /// `latdyn merge`: exit 0 when every variant completed, 3 when all ran and some failed,
 /// 4 when some are missing or interrupted (resume the merged file), 2 when refused
 /// (another campaign, repeated indices, unreadable input), 5 when the output failed.
@@ -24,7 +34,7 @@ pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let target = claim_output(&args.output)?;
+    let target = claim_output(&args.output, &[])?;
     let mut report = MergeReport::default();
     let command_line = std::env::args().collect::<Vec<_>>().join(" ");
     let result = campaign::merge(&args.shards, target, &command_line, &mut report);
@@ -166,7 +176,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         .output
         .as_deref()
         .or(args.resume.as_deref())
-        .map(claim_output)
+        .map(|p| claim_output(p, &sweep_inputs(args)))
         .transpose()?;
     let n_var = variants.len().max(1);
     let (stage, gpu_eval) = choose_stage(&args.backend, n_var, n_elem, cores)?;
@@ -657,7 +667,11 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
         opts.push(args.path.options(&m)?);
         models.push(m);
     }
-    let target = args.output.as_deref().map(claim_output).transpose()?;
+    let target = args
+        .output
+        .as_deref()
+        .map(|p| claim_output(p, &sweep_inputs(args)))
+        .transpose()?;
     let cores = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1);
