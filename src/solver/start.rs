@@ -127,6 +127,9 @@ pub(crate) async fn consistent_velocity(
             }
         }
     }
+    if kv.iter().any(|k| !k.is_finite()) {
+        return Err("the residual is not finite near the initial state".to_string());
+    }
     let kv0 = super::linear::norm_inf(&kv);
     if kv0 == 0.0 {
         return Ok(done);
