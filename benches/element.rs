@@ -103,11 +103,46 @@ fn main() {
         "internal_force:         {:.2} us/call   ({acc:.1})",
         dt * 1e6
     );
+    stage_parts(&e, &s, &v, &a);
     let [t_full, t_res] = stage_report(&e, &s, &v, &a);
     flop_report(
         &e,
         &s,
         [t_tangent, t_dual, t_inertia, t_residual, t_full, t_res],
+    );
+}
+
+/// The full evaluation's four parts, each timed alone on one element: where a faster
+/// stage has to come from (the doc comments of the functions say what each computes).
+fn stage_parts(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) {
+    let n = 20000;
+    let mut rows = GradRows::default();
+    let (mut m, mut c) = ([[0.0; 12]; 12], [[0.0; 12]; 12]);
+    let mut acc = 0.0;
+    let time = |f: &mut dyn FnMut()| {
+        let t = Instant::now();
+        for _ in 0..n {
+            f();
+        }
+        t.elapsed().as_secs_f64() / n as f64 * 1e6
+    };
+    let t_force = time(&mut || {
+        let (_, _, f, k, _) = tangent_parts(e, std::hint::black_box(s));
+        acc += f[0] + k[1][2];
+    });
+    let t_rows = time(&mut || rows.fill_with_rates(e, std::hint::black_box(s), v));
+    let t_mc = time(&mut || {
+        mass_and_rates(std::hint::black_box(&rows), v, &mut m, &mut c);
+        acc += m[1][1] + c[2][2];
+    });
+    let (frames, g, _, _, _) = tangent_parts(e, s);
+    let t_forces = time(&mut || {
+        let r = inertia_forces(e, std::hint::black_box(s), &g, &frames, v, a);
+        acc += r.finert[0];
+    });
+    println!(
+        "stage parts [us]: force + tangent {t_force:.2}, gradient rows g and g-dot \
+         {t_rows:.2}, M and C {t_mc:.2}, inertial forces {t_forces:.2}   ({acc:.1})"
     );
 }
 

@@ -216,10 +216,8 @@ pub fn internal_force_tangent_energy(e: &ElemData, s: &ElemState) -> (Vec12, Mat
 }
 
 /// The full evaluation's shared pieces: [`residual_parts`] and the tangent K.
-pub(super) fn tangent_parts(
-    e: &ElemData,
-    s: &ElemState,
-) -> ((Mat3, Mat3), Grad<f64>, Vec12, Mat12, f64) {
+/// (public for the element bench's split of the stage)
+pub fn tangent_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, Mat12, f64) {
     let (frames, g, (m, n), f, u) = shared_parts(e, s);
     let k = tangent(&e.props, e.l0, &g, &m, n);
     (frames, g, f, k, u)

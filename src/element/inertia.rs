@@ -173,7 +173,8 @@ impl GradRows {
     /// Overwrite with the rows of g at the element's node frames and, when the nodes move
     /// along `v`, of ġ: one dual-number pass of the closed-form gradients, whose value
     /// parts do exactly the f64 arithmetic, so g is bit-identical either way.
-    pub(super) fn fill_with_rates(&mut self, e: &ElemData, s: &ElemState, v: &Vec12) {
+    /// (public for the element bench's split of the stage)
+    pub fn fill_with_rates(&mut self, e: &ElemData, s: &ElemState, v: &Vec12) {
         let (t1, t2) = node_frames(e, s);
         if !v.iter().any(|x| *x != 0.0) {
             self.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2));
@@ -340,7 +341,8 @@ impl<'g> FieldMaps<'g> {
 /// S = gᵀ(w ⊙ H(v, v)) with H from one second-order jet pass ([`field_jets`]), the
 /// node frames `frames` those of the gradient. The full and the residual-only evaluation
 /// both call this with the same f64 gradient, so their forces are bit-identical.
-pub(super) fn inertia_forces(
+/// (public for the element bench's split of the stage)
+pub fn inertia_forces(
     e: &ElemData,
     s: &ElemState,
     g: &Grad<f64>,
@@ -443,7 +445,8 @@ pub fn inertia_full(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> Iner
 /// M and C of [`inertia_full`] from rows filled by [`GradRows::fill_with_rates`] at the
 /// element's state and `v`, written over `m` and `c`: what the stage calls, so the
 /// matrices go straight to its output.
-pub(super) fn mass_and_rates(r: &GradRows, v: &Vec12, m: &mut Mat12, c: &mut Mat12) {
+/// (public for the element bench's split of the stage)
+pub fn mass_and_rates(r: &GradRows, v: &Vec12, m: &mut Mat12, c: &mut Mat12) {
     mass_into(&r.g, &r.w, m);
     if r.rates {
         for (j, cj) in c.iter_mut().enumerate() {
