@@ -538,7 +538,7 @@ impl<'m> Integrator<'m> {
         ctx: &RunContext<'_>,
         slot: Option<Arc<Slot>>,
     ) -> Result<Integrator<'m>, DynamicsError> {
-        let s = if model.initial_steady {
+        let mut s = if model.initial_steady {
             crate::solver::rotating::steady_start(model).map_err(DynamicsError::SteadyStart)?
         } else {
             State::new(model)
@@ -554,7 +554,10 @@ impl<'m> Integrator<'m> {
         };
         // the pattern without an element evaluation: `initial_acceleration` below
         // evaluates before anything reads the system's forces
-        let sys = NewtonSystem::with_symbolic_unevaluated(model, &asm, &s, ctx.symbolic)?;
+        let mut sys = NewtonSystem::with_symbolic_unevaluated(model, &asm, &s, ctx.symbolic)?;
+        let consistent_start = super::start::start_velocity(model, &asm, &mut sys, &mut s)
+            .await
+            .map_err(DynamicsError::ConsistentStart)?;
         let nd = model.dofs.len();
         let mut it = Integrator {
             model,
@@ -567,11 +570,7 @@ impl<'m> Integrator<'m> {
             prev_q: vec![0.0; nd],
             prev_a: vec![0.0; nd],
             prev_h: 0.0,
-            coord_scale: model.x0.first().map_or(1.0, |o| {
-                model.x0.iter().fold(1.0f64, |m, x| {
-                    m.max(crate::math::norm(crate::math::sub(*x, *o)))
-                })
-            }),
+            coord_scale: super::statics::coord_scale(model),
             trend_smooth: false,
             te: TimeError::new(model, &s, model.n_eq),
             lock_retries: 0,
@@ -583,7 +582,10 @@ impl<'m> Integrator<'m> {
             aux: vec![0.0; nd],
             p: AlphaParams::new(model.solver.rho_inf),
             h: model.solver.dt,
-            stats: RunStats::default(),
+            stats: RunStats {
+                consistent_start,
+                ..RunStats::default()
+            },
             energies: Energies::default(),
             driver_power: 0.0,
             load_power: 0.0,
@@ -591,38 +593,6 @@ impl<'m> Integrator<'m> {
             load_impulse: vec![(0.0, 0.0, 0.0, 0.0); model.loads.len()],
             drive_departure: vec![(0.0, 0.0, None); model.dofs.len()],
         };
-        let apply = match (model.initial_steady, model.initial_consistent_velocity) {
-            // a steady start strains nothing; `false` takes the velocity as given
-            (true, _) | (false, Some(false)) => None,
-            (false, Some(true)) => Some(true),
-            (false, None) => Some(false),
-        };
-        if let Some(apply) = apply {
-            let mut s = it.s.clone();
-            let mut c = super::start::consistent_velocity(
-                model,
-                &it.asm,
-                &mut it.sys,
-                &mut s,
-                it.coord_scale,
-            )
-            .await
-            .map_err(DynamicsError::ConsistentStart);
-            if apply {
-                it.s.v.copy_from_slice(&s.v);
-                it.start.v.copy_from_slice(&s.v);
-                it.trial.v.copy_from_slice(&s.v);
-            }
-            if let Ok(c) = &mut c {
-                c.applied = apply;
-            }
-            match c {
-                Ok(c) => it.stats.consistent_start = Some(c),
-                // a check that cannot be made is no reason not to run as given
-                Err(e) if apply => return Err(e),
-                Err(_) => {}
-            }
-        }
         it.initial_acceleration().await;
         let y0 = it.sample();
         for (k, y) in y0.iter().enumerate() {

@@ -83,14 +83,39 @@ pub struct ConsistentStart {
     pub applied: bool,
 }
 
-/// Make `s.v` consistent (see the module doc). `coord_scale` is the model's size [m],
-/// which sets the difference step for translations.
-pub(crate) async fn consistent_velocity(
+/// What `[initial]` asks of the start's velocity: with `consistent_velocity = true`,
+/// make `s.v` consistent; where it is not written, measure on a copy what that would
+/// change (for the warning) and leave `s` as it is; with `= false`, or a steady start
+/// (which strains nothing), nothing. A measurement that cannot be made is no reason not
+/// to run as given (`Ok(None)`); a start asked for that cannot be made is an error.
+pub(crate) async fn start_velocity(
     model: &Model,
     asm: &Assembler,
     sys: &mut NewtonSystem,
     s: &mut State,
-    coord_scale: f64,
+) -> Result<Option<ConsistentStart>, String> {
+    if model.initial_steady {
+        return Ok(None);
+    }
+    match model.initial_consistent_velocity {
+        Some(false) => Ok(None),
+        Some(true) => {
+            let mut c = consistent_velocity(model, asm, sys, s).await?;
+            c.applied = true;
+            Ok(Some(c))
+        }
+        None => Ok(consistent_velocity(model, asm, sys, &mut s.clone())
+            .await
+            .ok()),
+    }
+}
+
+/// Make `s.v` consistent (see the module doc).
+async fn consistent_velocity(
+    model: &Model,
+    asm: &Assembler,
+    sys: &mut NewtonSystem,
+    s: &mut State,
 ) -> Result<ConsistentStart, String> {
     let n = model.n_eq;
     // the equations the start solves for: free, active, without an explicit rate
@@ -101,7 +126,7 @@ pub(crate) async fn consistent_velocity(
         }
     }
     let solved = solve.iter().filter(|x| **x).count();
-    let scale = rate_scales(model, coord_scale);
+    let scale = rate_scales(model, super::statics::coord_scale(model));
     let vmax =
         s.v.iter()
             .zip(&scale)
@@ -195,13 +220,16 @@ pub(crate) async fn consistent_velocity(
     let mut delta = vec![0.0; n];
     let mut r = kv.clone();
     let mut kd = vec![0.0; n];
+    let mut step = vec![0.0; n];
     loop {
         let left = super::linear::norm_inf(&r) / kv0;
         done.strain_rate_left = left;
         if left <= STRAIN_RATE_LEFT || done.passes == MAX_PASSES {
             break;
         }
-        let mut step: Vec<f64> = r.iter().map(|x| -x).collect();
+        for (x, ri) in step.iter_mut().zip(&r) {
+            *x = -ri;
+        }
         lu.try_solve_in_place(&mut step)
             .map_err(|e| format!("the consistent-velocity solve failed: {e}"))?;
         for (d, x) in delta.iter_mut().zip(&step) {
@@ -244,6 +272,21 @@ pub(crate) async fn consistent_velocity(
     Ok(done)
 }
 
+/// Every joint and body coordinate, with whether it is an angle: hinge angles and the
+/// coordinates of the bodies' chains (translations are not angles).
+fn joint_coordinates(model: &Model) -> impl Iterator<Item = (usize, bool)> + '_ {
+    let hinges = model.hinges.iter().map(|h| (h.dof, true));
+    let bodies = model.bodies.iter().flat_map(|b| {
+        b.chain.iter().map(|l| match *l {
+            ChainLink::Translate { dof, .. } => (dof, false),
+            ChainLink::RotateFixedAxis { dof, .. }
+            | ChainLink::SpinComponent { dof, .. }
+            | ChainLink::Hinge { dof, .. } => (dof, true),
+        })
+    });
+    hinges.chain(bodies)
+}
+
 /// W of the module doc by equation: the largest mass-matrix diagonal for a joint or body
 /// coordinate, the coordinate's own diagonal times [`NODE_WEIGHT`] for a beam node's. Not
 /// a joint coordinate's own diagonal: a hinge angle alone turns only its end node (the
@@ -252,22 +295,9 @@ pub(crate) async fn consistent_velocity(
 /// weights. A massless node coordinate takes the smallest positive diagonal.
 fn weights(model: &Model, solve: &[bool], mass: &[f64]) -> Vec<f64> {
     let mut joint = vec![false; model.n_eq];
-    let mut mark = |d: usize| {
+    for (d, _) in joint_coordinates(model) {
         if let Some(e) = model.dofs[d].eq {
             joint[e] = true;
-        }
-    };
-    for h in &model.hinges {
-        mark(h.dof);
-    }
-    for b in &model.bodies {
-        for l in &b.chain {
-            match *l {
-                ChainLink::Translate { dof, .. }
-                | ChainLink::RotateFixedAxis { dof, .. }
-                | ChainLink::SpinComponent { dof, .. }
-                | ChainLink::Hinge { dof, .. } => mark(dof),
-            }
         }
     }
     let solved = || mass.iter().zip(solve).filter(|(m, on)| **on && **m > 0.0);
@@ -292,14 +322,9 @@ fn rate_scales(model: &Model, coord_scale: f64) -> Vec<f64> {
     for sp in &model.spins {
         sp.dofs.iter().for_each(|&d| scale[d] = 1.0);
     }
-    for h in &model.hinges {
-        scale[h.dof] = 1.0;
-    }
-    for b in &model.bodies {
-        for l in &b.chain {
-            if let ChainLink::RotateFixedAxis { dof, .. } = l {
-                scale[*dof] = 1.0;
-            }
+    for (d, angle) in joint_coordinates(model) {
+        if angle {
+            scale[d] = 1.0;
         }
     }
     scale
@@ -348,7 +373,7 @@ mod tests {
         let asm = Assembler::new(model);
         let mut s = State::new(model);
         let mut sys = NewtonSystem::new(model, &asm, &s).unwrap();
-        let r = block_on(consistent_velocity(model, &asm, &mut sys, &mut s, 1.0)).unwrap();
+        let r = block_on(consistent_velocity(model, &asm, &mut sys, &mut s)).unwrap();
         (s, r)
     }
 

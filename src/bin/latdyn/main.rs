@@ -188,6 +188,14 @@ pub(crate) fn claim_output(
     latdyn::output::OutputTarget::claim(path).map_err(|e| anyhow!("{e}"))
 }
 
+/// [`claim_output`] of an optional `-o`.
+pub(crate) fn claim_optional_output(
+    path: Option<&std::path::Path>,
+    inputs: &[(&std::path::Path, &str)],
+) -> anyhow::Result<Option<latdyn::output::OutputTarget>> {
+    path.map(|p| claim_output(p, inputs)).transpose()
+}
+
 /// Whether two paths name one existing file (same device and inode).
 fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
     use std::os::unix::fs::MetadataExt;

@@ -6,7 +6,8 @@ use latdyn::model::Model;
 use crate::backend::choose_stage;
 use crate::cli::RunArgs;
 use crate::{
-    claim_output, emit, fail, is_csv, stop_flag, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT,
+    claim_optional_output, emit, fail, is_csv, stop_flag, EXIT_FAILED, EXIT_INTERRUPTED,
+    EXIT_OUTPUT,
 };
 
 /// Where `run -o` puts its samples as they come: the campaign layout with one variant,
@@ -140,11 +141,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         eprintln!("{note}");
     }
     let model_file = [(args.model.model.as_path(), "the model file")];
-    let target = args
-        .output
-        .as_deref()
-        .map(|p| claim_output(p, &model_file))
-        .transpose()?;
+    let target = claim_optional_output(args.output.as_deref(), &model_file)?;
     let (stage, _gpu) = choose_stage(&args.backend, 1, m.elements.len(), 1)?;
     let mut sink = match target {
         Some(t) => Some(RunSink::open(&m, t, &stage).map_err(|e| anyhow!("{e}"))?),

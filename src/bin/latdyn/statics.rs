@@ -4,7 +4,7 @@ use anyhow::{anyhow, bail, Context};
 use latdyn::model::Model;
 
 use crate::cli::StaticsArgs;
-use crate::{claim_output, emit, fail, EXIT_FAILED, EXIT_OUTPUT};
+use crate::{claim_optional_output, emit, fail, EXIT_FAILED, EXIT_OUTPUT};
 
 pub(crate) fn sensor_map(
     m: &Model,
@@ -64,11 +64,7 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     let opts = args.path.options(&m)?;
     path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
     let model_file = [(args.model.model.as_path(), "the model file")];
-    let target = args
-        .output
-        .as_deref()
-        .map(|p| claim_output(p, &model_file))
-        .transpose()?;
+    let target = claim_optional_output(args.output.as_deref(), &model_file)?;
     let t0 = std::time::Instant::now();
     let r = path::follow(&m, &opts);
     let wall = t0.elapsed().as_secs_f64();

@@ -6,8 +6,8 @@ use latdyn::model::{self, Model};
 use crate::backend::{choose_stage, gpu_default_batch};
 use crate::cli::{MergeArgs, SweepArgs};
 use crate::{
-    claim_output, emit, fail, injected_panic, stop_flag, EXIT_FAILED, EXIT_INTERNAL,
-    EXIT_INTERRUPTED, EXIT_OUTPUT, EXIT_USAGE,
+    claim_optional_output, claim_output, emit, fail, injected_panic, stop_flag, EXIT_FAILED,
+    EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OUTPUT, EXIT_USAGE,
 };
 
 /// The files a sweep reads, for [`claim_output`]: the model and the `--variants` table
@@ -25,16 +25,12 @@ fn sweep_inputs(args: &SweepArgs) -> Vec<(&std::path::Path, &'static str)> {
 /// (another campaign, repeated indices, unreadable input), 5 when the output failed.
 pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
     use latdyn::campaign::{self, MergeError, MergeReport};
-    let out_canon = std::fs::canonicalize(&args.output).ok();
-    for s in &args.shards {
-        if out_canon.is_some() && std::fs::canonicalize(s).ok() == out_canon {
-            bail!(
-                "merge: -o {} is one of the shard files; write the merged campaign elsewhere",
-                args.output.display()
-            );
-        }
-    }
-    let target = claim_output(&args.output, &[])?;
+    let shards: Vec<_> = args
+        .shards
+        .iter()
+        .map(|p| (p.as_path(), "one of the shard files"))
+        .collect();
+    let target = claim_output(&args.output, &shards)?;
     let mut report = MergeReport::default();
     let command_line = std::env::args().collect::<Vec<_>>().join(" ");
     let result = campaign::merge(&args.shards, target, &command_line, &mut report);
@@ -172,12 +168,10 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         );
     }
     // before compiling the variants: a refused path costs nothing
-    let mut target = args
-        .output
-        .as_deref()
-        .or(args.resume.as_deref())
-        .map(|p| claim_output(p, &sweep_inputs(args)))
-        .transpose()?;
+    let mut target = claim_optional_output(
+        args.output.as_deref().or(args.resume.as_deref()),
+        &sweep_inputs(args),
+    )?;
     let n_var = variants.len().max(1);
     let (stage, gpu_eval) = choose_stage(&args.backend, n_var, n_elem, cores)?;
     // GPU too: one worker per core, each driving its batch; while one worker's round is
@@ -667,11 +661,7 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
         opts.push(args.path.options(&m)?);
         models.push(m);
     }
-    let target = args
-        .output
-        .as_deref()
-        .map(|p| claim_output(p, &sweep_inputs(args)))
-        .transpose()?;
+    let target = claim_optional_output(args.output.as_deref(), &sweep_inputs(args))?;
     let cores = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1);
