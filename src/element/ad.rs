@@ -18,23 +18,74 @@ pub trait Real:
     + Div<Output = Self>
     + Neg<Output = Self>
 {
+    /// The plain numbers this scalar's values are made of: `f64`, or [`F4`] when four
+    /// elements are evaluated at once. Element constants (lengths, stiffnesses) are
+    /// computed in it and lifted, so a constant's bits do not depend on the scalar.
+    type Base: Lane;
+    /// `v` in every lane, no derivative
     fn cst(v: f64) -> Self;
+    /// `b` as this scalar, no derivative
+    fn lift(b: Self::Base) -> Self;
     fn sqrt(self) -> Self;
-    fn value(self) -> f64;
+}
+
+/// A plain number type the element code runs on: `f64`, or [`F4`], four elements in SIMD
+/// lanes. Every lane of an [`F4`] operation is the IEEE operation `f64` does (add, sub,
+/// mul, div, sqrt are correctly rounded, neg flips the sign bit), so a lane's result is
+/// bit-identical to the `f64` evaluation of that element alone.
+pub trait Lane: Real<Base = Self> + Default + Send + Sync + 'static {
+    const WIDTH: usize;
+    /// The bits of `self` where `mask`'s are set: `mask` all ones keeps a lane, all zeros
+    /// makes it +0.0 (a lane at rest gets the exact zero its scalar evaluation has).
+    fn keep(self, mask: Self) -> Self;
 }
 
 impl Real for f64 {
-    #[inline]
+    type Base = f64;
+    #[inline(always)]
     fn cst(v: f64) -> Self {
         v
     }
-    #[inline]
+    #[inline(always)]
+    fn lift(b: f64) -> Self {
+        b
+    }
+    #[inline(always)]
     fn sqrt(self) -> Self {
         f64::sqrt(self)
     }
-    #[inline]
-    fn value(self) -> f64 {
-        self
+}
+impl Lane for f64 {
+    const WIDTH: usize = 1;
+    #[inline(always)]
+    fn keep(self, mask: f64) -> f64 {
+        f64::from_bits(self.to_bits() & mask.to_bits())
+    }
+}
+
+/// Four f64 lanes (AVX on x86-64-v3, two SSE2 halves on a baseline build).
+pub type F4 = wide::f64x4;
+
+impl Real for F4 {
+    type Base = F4;
+    #[inline(always)]
+    fn cst(v: f64) -> Self {
+        F4::splat(v)
+    }
+    #[inline(always)]
+    fn lift(b: F4) -> Self {
+        b
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        F4::sqrt(self)
+    }
+}
+impl Lane for F4 {
+    const WIDTH: usize = 4;
+    #[inline(always)]
+    fn keep(self, mask: F4) -> F4 {
+        self & mask
     }
 }
 
@@ -107,18 +158,19 @@ impl Div for HyperDual {
 }
 
 impl Real for HyperDual {
+    type Base = f64;
     #[inline]
     fn cst(v: f64) -> Self {
         HyperDual::new(v, 0.0, 0.0, 0.0)
     }
     #[inline]
+    fn lift(b: f64) -> Self {
+        HyperDual::new(b, 0.0, 0.0, 0.0)
+    }
+    #[inline]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
         self.lift(s, 0.5 / s, -0.25 / (s * self.v))
-    }
-    #[inline]
-    fn value(self) -> f64 {
-        self.v
     }
 }
 
@@ -126,22 +178,22 @@ impl Real for HyperDual {
 /// (u, u) without the duplicate lane. Each operation forms the same products in the same
 /// order as [`HyperDual`]'s (the mixed products a·b and b·a are one product here, added
 /// twice), so `dd` is bit-identical to the hyper-dual `ab` along (u, u) at about two
-/// thirds of its multiplications.
+/// thirds of its multiplications. Generic over the lanes ([`Lane`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Jet2 {
-    pub v: f64,
-    pub d: f64,
-    pub dd: f64,
+pub struct Jet2<T = f64> {
+    pub v: T,
+    pub d: T,
+    pub dd: T,
 }
 
-impl Jet2 {
-    #[inline]
-    pub fn new(v: f64, d: f64, dd: f64) -> Self {
+impl<T: Lane> Jet2<T> {
+    #[inline(always)]
+    pub fn new(v: T, d: T, dd: T) -> Self {
         Jet2 { v, d, dd }
     }
     /// apply a scalar function given its value and first two derivatives at `self.v`
-    #[inline]
-    fn lift(self, f: f64, f1: f64, f2: f64) -> Self {
+    #[inline(always)]
+    fn lift_fn(self, f: T, f1: T, f2: T) -> Self {
         Jet2 {
             v: f,
             d: f1 * self.d,
@@ -150,30 +202,30 @@ impl Jet2 {
     }
 }
 
-impl Add for Jet2 {
+impl<T: Lane> Add for Jet2<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         Jet2::new(self.v + o.v, self.d + o.d, self.dd + o.dd)
     }
 }
-impl Sub for Jet2 {
+impl<T: Lane> Sub for Jet2<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Jet2::new(self.v - o.v, self.d - o.d, self.dd - o.dd)
     }
 }
-impl Neg for Jet2 {
+impl<T: Lane> Neg for Jet2<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn neg(self) -> Self {
         Jet2::new(-self.v, -self.d, -self.dd)
     }
 }
-impl Mul for Jet2 {
+impl<T: Lane> Mul for Jet2<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         let cross = self.d * o.d;
         Jet2::new(
@@ -183,28 +235,29 @@ impl Mul for Jet2 {
         )
     }
 }
-impl Div for Jet2 {
+impl<T: Lane> Div for Jet2<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
-        let inv = 1.0 / o.v;
-        self * o.lift(inv, -inv * inv, 2.0 * inv * inv * inv)
+        let inv = T::cst(1.0) / o.v;
+        self * o.lift_fn(inv, -inv * inv, T::cst(2.0) * inv * inv * inv)
     }
 }
 
-impl Real for Jet2 {
-    #[inline]
+impl<T: Lane> Real for Jet2<T> {
+    type Base = T;
+    #[inline(always)]
     fn cst(v: f64) -> Self {
-        Jet2::new(v, 0.0, 0.0)
+        Jet2::new(T::cst(v), T::cst(0.0), T::cst(0.0))
     }
-    #[inline]
+    #[inline(always)]
+    fn lift(b: T) -> Self {
+        Jet2::new(b, T::cst(0.0), T::cst(0.0))
+    }
+    #[inline(always)]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
-        self.lift(s, 0.5 / s, -0.25 / (s * self.v))
-    }
-    #[inline]
-    fn value(self) -> f64 {
-        self.v
+        self.lift_fn(s, T::cst(0.5) / s, T::cst(-0.25) / (s * self.v))
     }
 }
 
@@ -249,71 +302,72 @@ pub fn mvec<R: Real>(m: &M3<R>, v: V3<R>) -> V3<R> {
     ]
 }
 
-/// v + d ε with ε² = 0: one directional derivative.
+/// v + d ε with ε² = 0: one directional derivative. Generic over the lanes ([`Lane`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Dual {
-    pub v: f64,
-    pub d: f64,
+pub struct Dual<T = f64> {
+    pub v: T,
+    pub d: T,
 }
 
-impl Dual {
-    #[inline]
-    pub fn new(v: f64, d: f64) -> Self {
+impl<T: Lane> Dual<T> {
+    #[inline(always)]
+    pub fn new(v: T, d: T) -> Self {
         Dual { v, d }
     }
 }
 
-impl Add for Dual {
+impl<T: Lane> Add for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         Dual::new(self.v + o.v, self.d + o.d)
     }
 }
-impl Sub for Dual {
+impl<T: Lane> Sub for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Dual::new(self.v - o.v, self.d - o.d)
     }
 }
-impl Neg for Dual {
+impl<T: Lane> Neg for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn neg(self) -> Self {
         Dual::new(-self.v, -self.d)
     }
 }
-impl Mul for Dual {
+impl<T: Lane> Mul for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Dual::new(self.v * o.v, self.v * o.d + self.d * o.v)
     }
 }
-impl Div for Dual {
+impl<T: Lane> Div for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         // the value divides as f64 does, so a dual pass's values are bit-identical to
         // the plain f64 pass (the inertia takes g from the pass that also gives ġ)
-        let inv = 1.0 / o.v;
+        let inv = T::cst(1.0) / o.v;
         Dual::new(self.v / o.v, (self.d * o.v - self.v * o.d) * inv * inv)
     }
 }
-impl Real for Dual {
-    #[inline]
+impl<T: Lane> Real for Dual<T> {
+    type Base = T;
+    #[inline(always)]
     fn cst(v: f64) -> Self {
-        Dual::new(v, 0.0)
+        Dual::new(T::cst(v), T::cst(0.0))
     }
-    #[inline]
+    #[inline(always)]
+    fn lift(b: T) -> Self {
+        Dual::new(b, T::cst(0.0))
+    }
+    #[inline(always)]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
-        Dual::new(s, 0.5 * self.d / s)
-    }
-    #[inline]
-    fn value(self) -> f64 {
-        self.v
+        Dual::new(s, T::cst(0.5) * self.d / s)
     }
 }
 
@@ -382,17 +436,18 @@ impl<const N: usize> Div for DualVec<N> {
     }
 }
 impl<const N: usize> Real for DualVec<N> {
+    type Base = f64;
     #[inline]
     fn cst(v: f64) -> Self {
         DualVec::new(v, [0.0; N])
     }
     #[inline]
+    fn lift(b: f64) -> Self {
+        DualVec::new(b, [0.0; N])
+    }
+    #[inline]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
         DualVec::new(s, self.d.map(|x| 0.5 * x / s))
-    }
-    #[inline]
-    fn value(self) -> f64 {
-        self.v
     }
 }

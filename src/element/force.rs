@@ -5,9 +5,9 @@
 //! dual-number derivative of the force, column by column, is kept for the tests as
 //! [`super::reference::internal_force_tangent_dual`]).
 
-use super::ad::{mcol, vcross, vdot, Real, M3, V3};
+use super::ad::{mcol, vcross, vdot, Lane, Real, M3, V3};
 use super::kinematics::*;
-use crate::math::{Mat3, Vec3};
+use crate::math::Mat3;
 use crate::model::BeamProps;
 
 /// First derivatives of the deformation measures with respect to the 12 element dofs
@@ -39,8 +39,8 @@ pub struct Grad<R> {
 /// derivative of this gradient gives the tangent).
 #[inline]
 pub fn gradient<R: Real>(
-    chord0: Vec3,
-    l0: f64,
+    chord0: V3<R::Base>,
+    l0: R::Base,
     u1: V3<R>,
     u2: V3<R>,
     t1: &M3<R>,
@@ -127,15 +127,20 @@ pub fn gradient<R: Real>(
 
 /// ∂U/∂φ and ∂U/∂ℓ (= the axial force N) of the Bernoulli energy (see [`energy`]).
 #[inline]
-pub(super) fn energy_partials<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> ([R; 6], R) {
+pub(super) fn energy_partials<R: Real>(
+    p: &BeamProps<R::Base>,
+    l0: R::Base,
+    k: &Kin<R>,
+) -> ([R; 6], R) {
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
-    let t = R::cst(p.gj / l0) * (fx2 - fx1);
-    let cy = R::cst(2.0 * p.eiy / l0);
-    let cz = R::cst(2.0 * p.eiz / l0);
+    let two_b: R::Base = Real::cst(2.0);
+    let t = R::lift(p.gj / l0) * (fx2 - fx1);
+    let cy = R::lift(two_b * p.eiy / l0);
+    let cz = R::lift(two_b * p.eiz / l0);
     let two = R::cst(2.0);
     let four = R::cst(4.0);
-    let n = R::cst(p.ea / l0) * stretch(l0, k);
-    let g = n * R::cst(l0 / 30.0);
+    let n = R::lift(p.ea / l0) * stretch(l0, k);
+    let g = n * R::lift(l0 / Real::cst(30.0));
     (
         [
             -t,
@@ -167,7 +172,7 @@ fn force_from<R: Real>(g: &Grad<R>, m: &[R; 6], n: R) -> [R; NDOF] {
 /// so the element bench can count its floating-point operations).
 #[inline]
 pub fn force_generic<R: Real>(
-    e: &ElemData,
+    e: &ElemData<R::Base>,
     u1: V3<R>,
     u2: V3<R>,
     t1: &M3<R>,
@@ -190,22 +195,39 @@ pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
 /// [`gradient`], [`internal_force`] and [`strain_energy`] (which would compute the frames
 /// and the kinematics again).
 pub(super) fn residual_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, f64) {
-    let (frames, g, _, f, u) = shared_parts(e, s);
-    (frames, g, f, u)
+    let (t1, t2) = node_frames(e, s);
+    let (g, _, f, u) = shared_parts_at(e, s.u1, s.u2, &t1, &t2);
+    ((t1, t2), g, f, u)
 }
 
-/// [`residual_parts`] with the energy's partials (moments, axial force) the tangent needs.
+/// The gradient, the energy's partials (moments, axial force) the tangent needs, the
+/// internal force and the strain energy at node displacements `u1`, `u2` and node frames
+/// `t1`, `t2`, in any lanes.
 #[allow(clippy::type_complexity)]
-fn shared_parts(
-    e: &ElemData,
-    s: &ElemState,
-) -> ((Mat3, Mat3), Grad<f64>, ([f64; 6], f64), Vec12, f64) {
-    let (t1, t2) = node_frames(e, s);
-    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+#[inline(always)]
+pub(super) fn shared_parts_at<B: Lane>(
+    e: &ElemData<B>,
+    u1: V3<B>,
+    u2: V3<B>,
+    t1: &M3<B>,
+    t2: &M3<B>,
+) -> (Grad<B>, ([B; 6], B), [B; NDOF], B) {
+    let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
     let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
     let f = force_from(&g, &m, n);
     let u = energy(&e.props, e.l0, &g.kin);
-    ((t1, t2), g, (m, n), f, u)
+    (g, (m, n), f, u)
+}
+
+/// The tangent K from [`shared_parts_at`]'s gradient and partials, in any lanes.
+#[inline(always)]
+pub(super) fn tangent_at<B: Lane>(
+    e: &ElemData<B>,
+    g: &Grad<B>,
+    m: &[B; 6],
+    n: B,
+) -> [[B; NDOF]; NDOF] {
+    tangent(&e.props, e.l0, g, m, n)
 }
 
 /// [`internal_force_tangent`] and the strain energy (bit-identical to [`strain_energy`],
@@ -218,9 +240,10 @@ pub fn internal_force_tangent_energy(e: &ElemData, s: &ElemState) -> (Vec12, Mat
 /// The full evaluation's shared pieces: [`residual_parts`] and the tangent K.
 /// (public for the element bench's split of the stage)
 pub fn tangent_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, Mat12, f64) {
-    let (frames, g, (m, n), f, u) = shared_parts(e, s);
+    let (t1, t2) = node_frames(e, s);
+    let (g, (m, n), f, u) = shared_parts_at(e, s.u1, s.u2, &t1, &t2);
     let k = tangent(&e.props, e.l0, &g, &m, n);
-    (frames, g, f, k, u)
+    ((t1, t2), g, f, k, u)
 }
 
 /// K += a bᵀ over the rows `rows` (a indexed by row, b by column).
@@ -269,7 +292,7 @@ pub fn internal_force_tangent(e: &ElemData, s: &ElemState) -> (Vec12, Mat12) {
 /// count its floating-point operations).
 #[inline]
 pub fn force_tangent_generic<R: Real>(
-    e: &ElemData,
+    e: &ElemData<R::Base>,
     u1: V3<R>,
     u2: V3<R>,
     t1: &M3<R>,
@@ -283,7 +306,13 @@ pub fn force_tangent_generic<R: Real>(
 
 /// The closed-form K of [`internal_force_tangent`] from the gradient and the energy partials.
 #[inline]
-fn tangent<R: Real>(p: &BeamProps, l0: f64, g: &Grad<R>, m: &[R; 6], n: R) -> [[R; NDOF]; NDOF] {
+fn tangent<R: Real>(
+    p: &BeamProps<R::Base>,
+    l0: R::Base,
+    g: &Grad<R>,
+    m: &[R; 6],
+    n: R,
+) -> [[R; NDOF]; NDOF] {
     let z = R::cst(0.0);
     let half = R::cst(0.5);
     let four = R::cst(4.0);
@@ -291,7 +320,8 @@ fn tangent<R: Real>(p: &BeamProps, l0: f64, g: &Grad<R>, m: &[R; 6], n: R) -> [[
     let phi = g.kin.phi;
     let dp = &g.dphi;
     // material part
-    let c30 = R::cst(l0 / 30.0);
+    let two_b: R::Base = Real::cst(2.0);
+    let c30 = R::lift(l0 / Real::cst(30.0));
     let h = [
         z,
         c30 * (four * phi[1] - phi[4]),
@@ -303,16 +333,16 @@ fn tangent<R: Real>(p: &BeamProps, l0: f64, g: &Grad<R>, m: &[R; 6], n: R) -> [[
     let ds: [R; NDOF] = std::array::from_fn(|j| {
         g.dlen[j] + h[1] * dp[1][j] + h[2] * dp[2][j] + h[4] * dp[4][j] + h[5] * dp[5][j]
     });
-    let ea = R::cst(p.ea / l0);
+    let ea = R::lift(p.ea / l0);
     let eads = ds.map(|x| ea * x);
     rank1(&mut k, 0..NDOF, &ds, &eads);
-    let gj = R::cst(p.gj / l0);
+    let gj = R::lift(p.gj / l0);
     let tw: [R; NDOF] = std::array::from_fn(|j| dp[3][j] - dp[0][j]);
     let gjtw = tw.map(|x| gj * x);
     rank1(&mut k, 0..NDOF, &tw, &gjtw);
     let gn = n * c30;
-    for (c, (a1, a2)) in [(2.0 * p.eiy / l0, (1, 4)), (2.0 * p.eiz / l0, (2, 5))] {
-        let (d11, d12) = (R::cst(2.0 * c) + four * gn, R::cst(c) - gn);
+    for (c, (a1, a2)) in [(two_b * p.eiy / l0, (1, 4)), (two_b * p.eiz / l0, (2, 5))] {
+        let (d11, d12) = (R::lift(two_b * c) + four * gn, R::lift(c) - gn);
         let r1: [R; NDOF] = std::array::from_fn(|j| d11 * dp[a1][j] + d12 * dp[a2][j]);
         let r2: [R; NDOF] = std::array::from_fn(|j| d12 * dp[a1][j] + d11 * dp[a2][j]);
         rank1(&mut k, 0..NDOF, &dp[a1], &r1);

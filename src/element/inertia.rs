@@ -14,10 +14,10 @@
 //! M·a + S and M·v from the factored gradients ([`FieldMaps`], no rows). Its WGSL twin is
 //! `shaders/beam_inertia.wgsl` (S there still by the hyper-dual pass, the same numbers).
 
-use super::ad::{mvec, vadd, vsub, Dual, HyperDual, Jet2, Real, M3, V3};
+use super::ad::{mvec, vadd, vcross, vsub, Dual, HyperDual, Jet2, Lane, Real, M3, V3};
 use super::force::*;
 use super::kinematics::*;
-use crate::math::{cross, Mat3, Vec3};
+use crate::math::{Mat3, Vec3};
 use crate::model::BeamProps;
 
 /// 4-point Gauss-Legendre on [0, 1]
@@ -33,14 +33,14 @@ pub const GAUSS4: [(f64, f64); 4] = [
 /// displacement stands in for its position).
 #[inline]
 fn gauss_fields<R: Real>(
-    e: &ElemData,
+    e: &ElemData<R::Base>,
     u1: V3<R>,
     u2: V3<R>,
     t1: &M3<R>,
     t2: &M3<R>,
 ) -> [[[R; 3]; 3]; 4] {
     let kin = kinematics(e.chord0, e.l0, u1, u2, t1, t2);
-    let chord = vadd(e.chord0.map(R::cst), vsub(u2, u1));
+    let chord = vadd(e.chord0.map(R::lift), vsub(u2, u1));
     std::array::from_fn(|g| section_fields(&kin, u1, chord, GAUSS4[g].0))
 }
 
@@ -62,22 +62,23 @@ pub(super) fn field_derivs(
 /// The position fields at the Gauss points as second-order jets along `v`: their `.dd`
 /// parts are H(v, v), bit-identical to the `.ab` parts of [`field_derivs`] along (v, v)
 /// (the same products in the same order, each once instead of twice).
-pub(super) fn field_jets(
-    e: &ElemData,
-    s: &ElemState,
-    t1: &Mat3,
-    t2: &Mat3,
-    v: &Vec12,
-) -> [[[Jet2; 3]; 3]; 4] {
-    let (u1, tt1) = perturb_jet(s.u1, t1, &v[0..6]);
-    let (u2, tt2) = perturb_jet(s.u2, t2, &v[6..12]);
+pub(super) fn field_jets<B: Lane>(
+    e: &ElemData<B>,
+    (u1, u2, t1, t2): Positions<'_, B>,
+    v: &[B; NDOF],
+) -> [[[Jet2<B>; 3]; 3]; 4] {
+    let (u1, tt1) = perturb_jet(u1, t1, &v[0..6]);
+    let (u2, tt2) = perturb_jet(u2, t2, &v[6..12]);
     gauss_fields(e, u1, u2, &tt1, &tt2)
 }
+
+/// An element's node displacements and node frames (u1, u2, T1, T2), in any lanes.
+pub(super) type Positions<'a, B> = (V3<B>, V3<B>, &'a M3<B>, &'a M3<B>);
 
 /// μ-weights of the three position fields per unit length: ρA for a, ρI_z for b
 /// (multiplies y), ρI_y for c (multiplies z).
 #[inline]
-pub(super) fn field_weights(p: &BeamProps) -> [f64; 3] {
+pub(super) fn field_weights<B: Lane>(p: &BeamProps<B>) -> [B; 3] {
     [p.rho_a, p.rho_iz, p.rho_iy]
 }
 
@@ -92,13 +93,13 @@ pub(super) fn mass_from_rows(rows: &[[f64; NDOF]; 36], wq: &[f64; 36]) -> Mat12 
 }
 
 /// [`mass_from_rows`] written over `m` (every entry).
-fn mass_into(rows: &[[f64; NDOF]; 36], wq: &[f64; 36], m: &mut Mat12) {
+fn mass_into<B: Lane>(rows: &[[B; NDOF]; 36], wq: &[B; 36], m: &mut [[B; NDOF]; NDOF]) {
     for (j, mj) in m.iter_mut().enumerate() {
-        let mut acc = [0.0; NDOF];
+        let mut acc = [B::cst(0.0); NDOF];
         for (r, wr) in rows.iter().zip(wq) {
-            let a = wr * r[j];
+            let a = *wr * r[j];
             for (x, y) in acc.iter_mut().zip(r) {
-                *x += a * y;
+                *x = *x + a * *y;
             }
         }
         *mj = acc;
@@ -132,9 +133,9 @@ pub(super) fn project_ab(e: &ElemData, g: &FieldGrads, h: &[[[HyperDual; 3]; 3];
 /// μ-weights of the 36 rows (Gauss point, field, component): Gauss weight × field
 /// weight × L0.
 #[inline]
-fn row_weights(e: &ElemData) -> [f64; 36] {
+fn row_weights<B: Lane>(e: &ElemData<B>) -> [B; 36] {
     let wf = field_weights(&e.props);
-    std::array::from_fn(|q| GAUSS4[q / 9].1 * wf[(q / 3) % 3] * e.l0)
+    std::array::from_fn(|q| B::cst(GAUSS4[q / 9].1) * wf[(q / 3) % 3] * e.l0)
 }
 
 /// Field gradients g (and, in the full evaluation of a moving element, their time
@@ -142,46 +143,41 @@ fn row_weights(e: &ElemData) -> [f64; 36] {
 /// component) of 12 dofs, with the μ-weights of the rows: every inertia quantity is a
 /// sum over these rows. A stage keeps one per batch and overwrites it element by element
 /// (every entry it reads is written), so the hot path neither zeroes nor moves the rows.
-pub struct GradRows {
-    g: [[f64; NDOF]; 36],
-    gdot: [[f64; NDOF]; 36],
-    w: [f64; 36],
+pub struct GradRows<B = f64> {
+    g: [[B; NDOF]; 36],
+    gdot: [[B; NDOF]; 36],
+    w: [B; 36],
     /// whether `gdot` holds the rates (else C = 0)
     rates: bool,
 }
 
-impl Default for GradRows {
+impl<B: Lane> Default for GradRows<B> {
     fn default() -> Self {
         GradRows {
-            g: [[0.0; NDOF]; 36],
-            gdot: [[0.0; NDOF]; 36],
-            w: [0.0; 36],
+            g: [[B::cst(0.0); NDOF]; 36],
+            gdot: [[B::cst(0.0); NDOF]; 36],
+            w: [B::cst(0.0); 36],
             rates: false,
         }
     }
 }
 
-impl GradRows {
-    /// Overwrite with the rows of g from the element's f64 gradient
+impl<B: Lane> GradRows<B> {
+    /// Overwrite with the rows of g from the element's gradient
     /// (bit-identical to the value part of [`GradRows::fill_with_rates`]).
-    pub(super) fn fill_from(&mut self, e: &ElemData, g: &Grad<f64>) {
+    pub(super) fn fill_from(&mut self, e: &ElemData<B>, g: &Grad<B>) {
         field_rows_into(g, &mut self.g);
         self.w = row_weights(e);
         self.rates = false;
     }
 
-    /// Overwrite with the rows of g at the element's node frames and, when the nodes move
-    /// along `v`, of ġ: one dual-number pass of the closed-form gradients, whose value
-    /// parts do exactly the f64 arithmetic, so g is bit-identical either way.
-    /// (public for the element bench's split of the stage)
-    pub fn fill_with_rates(&mut self, e: &ElemData, s: &ElemState, v: &Vec12) {
-        let (t1, t2) = node_frames(e, s);
-        if !v.iter().any(|x| *x != 0.0) {
-            self.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2));
-            return;
-        }
-        let (u1, tt1) = perturb_dual(s.u1, &t1, &v[0..6]);
-        let (u2, tt2) = perturb_dual(s.u2, &t2, &v[6..12]);
+    /// Overwrite with the rows of g and ġ along `v` at the given positions: one
+    /// dual-number pass of the closed-form gradients, whose value parts do exactly the
+    /// plain arithmetic, so g is bit-identical to [`GradRows::fill_from`]'s.
+    pub(super) fn fill_rates_at(&mut self, e: &ElemData<B>, pos: Positions<'_, B>, v: &[B; NDOF]) {
+        let (u1, u2, t1, t2) = pos;
+        let (u1, tt1) = perturb_dual(u1, t1, &v[0..6]);
+        let (u2, tt2) = perturb_dual(u2, t2, &v[6..12]);
         let mut split = SplitRows {
             g: &mut self.g,
             gdot: &mut self.gdot,
@@ -192,6 +188,21 @@ impl GradRows {
     }
 }
 
+impl GradRows<f64> {
+    /// Overwrite with the rows of g at the element's node frames and, when the nodes move
+    /// along `v`, of ġ: one dual-number pass of the closed-form gradients, whose value
+    /// parts do exactly the f64 arithmetic, so g is bit-identical either way.
+    /// (public for the element bench's split of the stage)
+    pub fn fill_with_rates(&mut self, e: &ElemData, s: &ElemState, v: &Vec12) {
+        let (t1, t2) = node_frames(e, s);
+        if !v.iter().any(|x| *x != 0.0) {
+            self.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2));
+            return;
+        }
+        self.fill_rates_at(e, (s.u1, s.u2, &t1, &t2), v);
+    }
+}
+
 /// The position fields' gradients g_q (q = Gauss point, field) in factored form: the
 /// element's [`Grad`] and, per Gauss point, the field offsets the frame spin turns.
 /// Products g·x and gᵀy then cost a few dot products of length 12 instead of forming the
@@ -199,12 +210,21 @@ impl GradRows {
 /// with δθ = ∂θ_C x, δφ = ∂φ x, δℓ = ∂ℓ x, and gᵀy gathers, over the Gauss points,
 /// Σ r × y against ∂θ_C, the local components T_Cᵀ y against ∂φ and ∂ℓ, and the chord
 /// shares against the node translations.
-pub(super) struct FieldMaps<'g> {
-    g: &'g Grad<f64>,
+pub(super) struct FieldMaps<'g, B = f64> {
+    g: &'g Grad<B>,
     /// ra, rb, rc per Gauss point (spatial)
-    r: [[Vec3; 3]; 4],
+    r: [[V3<B>; 3]; 4],
     /// wz, wy per Gauss point (the bending shapes' values)
-    w: [[f64; 2]; 4],
+    w: [[B; 2]; 4],
+}
+
+/// `Σ a_k b_k` as `Iterator::sum` adds in f64 (from −0.0, left to right), so the lanes
+/// give the bits the scalar code gave.
+#[inline(always)]
+fn dot12<B: Lane>(a: &[B; NDOF], b: &[B; NDOF]) -> B {
+    a.iter()
+        .zip(b)
+        .fold(B::cst(-0.0), |acc, (x, y)| acc + *x * *y)
 }
 
 /// Shape-function values at Gauss point ξ: n1, n2 (Hermite, bending), d1, d2 (their
@@ -229,23 +249,24 @@ const GAUSS_SHAPES: [[f64; 6]; 4] = [
     shapes(GAUSS4[3].0),
 ];
 
-impl<'g> FieldMaps<'g> {
-    pub(super) fn new(g: &'g Grad<f64>) -> Self {
+impl<'g, B: Lane> FieldMaps<'g, B> {
+    pub(super) fn new(g: &'g Grad<B>) -> Self {
         let k = &g.kin;
         let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
-        let mut r = [[[0.0; 3]; 3]; 4];
-        let mut w = [[0.0; 2]; 4];
+        let z = B::cst(0.0);
+        let mut r = [[[z; 3]; 3]; 4];
+        let mut w = [[z; 2]; 4];
         for (gp, sh) in GAUSS_SHAPES.iter().enumerate() {
-            let [n1, n2, d1, d2, c0, c1] = *sh;
+            let [n1, n2, d1, d2, c0, c1] = sh.map(B::cst);
             let wz = n1 * fz1 + n2 * fz2;
             let wy = n1 * fy1 + n2 * fy2;
             let thx = c0 * fx1 + c1 * fx2;
             let thy = d1 * fy1 + d2 * fy2;
             let thz = d1 * fz1 + d2 * fz2;
             r[gp] = [
-                mvec(&k.tc, [0.0, k.len * wz, -(k.len * wy)]),
-                mvec(&k.tc, [-thz, 1.0, thx]),
-                mvec(&k.tc, [thy, -thx, 1.0]),
+                mvec(&k.tc, [z, k.len * wz, -(k.len * wy)]),
+                mvec(&k.tc, [-thz, B::cst(1.0), thx]),
+                mvec(&k.tc, [thy, -thx, B::cst(1.0)]),
             ];
             w[gp] = [wz, wy];
         }
@@ -253,17 +274,21 @@ impl<'g> FieldMaps<'g> {
     }
 
     /// g_q · x for every (Gauss point, field) q.
-    fn apply(&self, x: &Vec12) -> [[Vec3; 3]; 4] {
+    fn apply(&self, x: &[B; NDOF]) -> [[V3<B>; 3]; 4] {
         let g = self.g;
-        let dot = |row: &[f64; NDOF]| row.iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
-        let th = [dot(&g.dtheta[0]), dot(&g.dtheta[1]), dot(&g.dtheta[2])];
-        let ph: [f64; 6] = std::array::from_fn(|k| dot(&g.dphi[k]));
-        let l = dot(&g.dlen);
+        let th = [
+            dot12(&g.dtheta[0], x),
+            dot12(&g.dtheta[1], x),
+            dot12(&g.dtheta[2], x),
+        ];
+        let ph: [B; 6] = std::array::from_fn(|k| dot12(&g.dphi[k], x));
+        let l = dot12(&g.dlen, x);
         let (x1, x2) = ([x[0], x[1], x[2]], [x[6], x[7], x[8]]);
         let tc = &g.kin.tc;
         let len = g.kin.len;
+        let z = B::cst(0.0);
         std::array::from_fn(|gp| {
-            let [n1, n2, d1, d2, c0, c1] = GAUSS_SHAPES[gp];
+            let [n1, n2, d1, d2, c0, c1] = GAUSS_SHAPES[gp].map(B::cst);
             let [wz, wy] = self.w[gp];
             let duy = l * wz + len * (n1 * ph[2] + n2 * ph[5]);
             let duz = -(l * wy + len * (n1 * ph[1] + n2 * ph[4]));
@@ -271,10 +296,10 @@ impl<'g> FieldMaps<'g> {
             let dthy = d1 * ph[1] + d2 * ph[4];
             let dthz = d1 * ph[2] + d2 * ph[5];
             let [ra, rb, rc] = &self.r[gp];
-            let la = mvec(tc, [0.0, duy, duz]);
-            let lb = mvec(tc, [-dthz, 0.0, dthx]);
-            let lc = mvec(tc, [dthy, -dthx, 0.0]);
-            let (ca, cb, cc) = (cross(th, *ra), cross(th, *rb), cross(th, *rc));
+            let la = mvec(tc, [z, duy, duz]);
+            let lb = mvec(tc, [-dthz, z, dthx]);
+            let lc = mvec(tc, [dthy, -dthx, z]);
+            let (ca, cb, cc) = (vcross(th, *ra), vcross(th, *rb), vcross(th, *rc));
             [
                 std::array::from_fn(|i| ca[i] + la[i] + (c0 * x1[i] + c1 * x2[i])),
                 std::array::from_fn(|i| cb[i] + lb[i]),
@@ -284,54 +309,55 @@ impl<'g> FieldMaps<'g> {
     }
 
     /// Σ_q g_qj · y_q for every dof j.
-    fn project(&self, y: &[[Vec3; 3]; 4]) -> Vec12 {
+    fn project(&self, y: &[[V3<B>; 3]; 4]) -> [B; NDOF] {
         let g = self.g;
         let tc = &g.kin.tc;
         let len = g.kin.len;
-        let mut mth = [0.0; 3];
-        let mut cph = [0.0; 6];
-        let mut cl = 0.0;
-        let (mut f1, mut f2) = ([0.0; 3], [0.0; 3]);
+        let z = B::cst(0.0);
+        let mut mth = [z; 3];
+        let mut cph = [z; 6];
+        let mut cl = z;
+        let (mut f1, mut f2) = ([z; 3], [z; 3]);
         for gp in 0..4 {
-            let [n1, n2, d1, d2, c0, c1] = GAUSS_SHAPES[gp];
+            let [n1, n2, d1, d2, c0, c1] = GAUSS_SHAPES[gp].map(B::cst);
             let [wz, wy] = self.w[gp];
             let [ya, yb, yc] = &y[gp];
             let [ra, rb, rc] = &self.r[gp];
-            let (ma, mb, mc) = (cross(*ra, *ya), cross(*rb, *yb), cross(*rc, *yc));
+            let (ma, mb, mc) = (vcross(*ra, *ya), vcross(*rb, *yb), vcross(*rc, *yc));
             for i in 0..3 {
-                mth[i] += ma[i] + mb[i] + mc[i];
-                f1[i] += c0 * ya[i];
-                f2[i] += c1 * ya[i];
+                mth[i] = mth[i] + (ma[i] + mb[i] + mc[i]);
+                f1[i] = f1[i] + c0 * ya[i];
+                f2[i] = f2[i] + c1 * ya[i];
             }
             // local components T_Cᵀ y
-            let tt = |v: &Vec3| -> Vec3 {
+            let tt = |v: &V3<B>| -> V3<B> {
                 std::array::from_fn(|c| tc[0][c] * v[0] + tc[1][c] * v[1] + tc[2][c] * v[2])
             };
             let (za, zb, zc) = (tt(ya), tt(yb), tt(yc));
             // field a: duy za1 + duz za2
-            cl += za[1] * wz - za[2] * wy;
-            cph[2] += za[1] * len * n1;
-            cph[5] += za[1] * len * n2;
-            cph[1] -= za[2] * len * n1;
-            cph[4] -= za[2] * len * n2;
+            cl = cl + (za[1] * wz - za[2] * wy);
+            cph[2] = cph[2] + za[1] * len * n1;
+            cph[5] = cph[5] + za[1] * len * n2;
+            cph[1] = cph[1] - za[2] * len * n1;
+            cph[4] = cph[4] - za[2] * len * n2;
             // field b: −dthz zb0 + dthx zb2; field c: dthy zc0 − dthx zc1
-            cph[2] -= zb[0] * d1;
-            cph[5] -= zb[0] * d2;
-            cph[1] += zc[0] * d1;
-            cph[4] += zc[0] * d2;
-            cph[0] += (zb[2] - zc[1]) * c0;
-            cph[3] += (zb[2] - zc[1]) * c1;
+            cph[2] = cph[2] - zb[0] * d1;
+            cph[5] = cph[5] - zb[0] * d2;
+            cph[1] = cph[1] + zc[0] * d1;
+            cph[4] = cph[4] + zc[0] * d2;
+            cph[0] = cph[0] + (zb[2] - zc[1]) * c0;
+            cph[3] = cph[3] + (zb[2] - zc[1]) * c1;
         }
-        let mut out: Vec12 = std::array::from_fn(|j| {
+        let mut out: [B; NDOF] = std::array::from_fn(|j| {
             mth[0] * g.dtheta[0][j]
                 + mth[1] * g.dtheta[1][j]
                 + mth[2] * g.dtheta[2][j]
-                + (0..6).map(|k| cph[k] * g.dphi[k][j]).sum::<f64>()
+                + (0..6).fold(B::cst(-0.0), |acc, k| acc + cph[k] * g.dphi[k][j])
                 + cl * g.dlen[j]
         });
         for i in 0..3 {
-            out[i] += f1[i];
-            out[6 + i] += f2[i];
+            out[i] = out[i] + f1[i];
+            out[6 + i] = out[6 + i] + f2[i];
         }
         out
     }
@@ -350,42 +376,60 @@ pub fn inertia_forces(
     v: &Vec12,
     acc: &Vec12,
 ) -> InertiaForces {
+    let moving = v.iter().any(|x| *x != 0.0);
+    let pos = (s.u1, s.u2, &frames.0, &frames.1);
+    let (finert, mv, sv) = inertia_forces_at(e, g, pos, v, acc, moving.then_some(ALL_LANES));
+    InertiaForces { finert, mv, s: sv }
+}
+
+/// Every bit set: [`inertia_forces_at`] keeps every lane's velocity terms.
+pub(super) const ALL_LANES: f64 = f64::from_bits(u64::MAX);
+
+/// [`inertia_forces`] in any lanes: (M·acc + S, M·v, S). `moving` is `None` when no
+/// lane moves (M·v and S are then +0 and the jet pass is skipped, as the scalar code
+/// does), else a bit mask per lane ([`Lane::keep`]): lanes whose mask is zero are at
+/// rest and get +0 for M·v and S as they would alone.
+#[allow(clippy::type_complexity)]
+#[inline(always)]
+pub(super) fn inertia_forces_at<B: Lane>(
+    e: &ElemData<B>,
+    g: &Grad<B>,
+    pos: Positions<'_, B>,
+    v: &[B; NDOF],
+    acc: &[B; NDOF],
+    moving: Option<B>,
+) -> ([B; NDOF], [B; NDOF], [B; NDOF]) {
     let maps = FieldMaps::new(g);
     let w = gauss_field_weights(e);
     let weigh = |y| weigh_fields(&w, y);
     let ma = maps.project(&weigh(maps.apply(acc)));
-    let moving = v.iter().any(|x| *x != 0.0);
-    let (mv, sv) = if moving {
-        let h = field_jets(e, s, &frames.0, &frames.1, v);
-        let hv: [[Vec3; 3]; 4] = std::array::from_fn(|gp| {
+    let (mv, sv) = if let Some(mask) = moving {
+        let h = field_jets(e, pos, v);
+        let hv: [[V3<B>; 3]; 4] = std::array::from_fn(|gp| {
             std::array::from_fn(|f| std::array::from_fn(|c| h[gp][f][c].dd))
         });
         (
-            maps.project(&weigh(maps.apply(v))),
-            maps.project(&weigh(hv)),
+            maps.project(&weigh(maps.apply(v))).map(|x| x.keep(mask)),
+            maps.project(&weigh(hv)).map(|x| x.keep(mask)),
         )
     } else {
-        ([0.0; NDOF], [0.0; NDOF])
+        ([B::cst(0.0); NDOF], [B::cst(0.0); NDOF])
     };
-    InertiaForces {
-        finert: std::array::from_fn(|i| ma[i] + sv[i]),
-        mv,
-        s: sv,
-    }
+    (std::array::from_fn(|i| ma[i] + sv[i]), mv, sv)
 }
 
 /// Gauss weight × field weight × L0 per (Gauss point, field).
 #[inline]
-fn gauss_field_weights(e: &ElemData) -> [[f64; 3]; 4] {
+fn gauss_field_weights<B: Lane>(e: &ElemData<B>) -> [[B; 3]; 4] {
     let wf = field_weights(&e.props);
-    std::array::from_fn(|gp| std::array::from_fn(|f| GAUSS4[gp].1 * wf[f] * e.l0))
+    std::array::from_fn(|gp| std::array::from_fn(|f| B::cst(GAUSS4[gp].1) * wf[f] * e.l0))
 }
 
 #[inline]
-fn weigh_fields(w: &[[f64; 3]; 4], mut y: [[Vec3; 3]; 4]) -> [[Vec3; 3]; 4] {
+fn weigh_fields<B: Lane>(w: &[[B; 3]; 4], mut y: [[V3<B>; 3]; 4]) -> [[V3<B>; 3]; 4] {
     for (yg, wg) in y.iter_mut().zip(w) {
         for (yf, wf) in yg.iter_mut().zip(wg) {
-            yf.iter_mut().for_each(|x| *x *= wf);
+            yf.iter_mut().for_each(|x| *x = *x * *wf);
         }
     }
     y
@@ -393,7 +437,7 @@ fn weigh_fields(w: &[[f64; 3]; 4], mut y: [[Vec3; 3]; 4]) -> [[Vec3; 3]; 4] {
 
 /// M·x from the factored gradients, as [`inertia_forces`] forms M·acc (the same
 /// operations, so the same bits).
-pub(super) fn mass_times(e: &ElemData, g: &Grad<f64>, x: &Vec12) -> Vec12 {
+pub(super) fn mass_times<B: Lane>(e: &ElemData<B>, g: &Grad<B>, x: &[B; NDOF]) -> [B; NDOF] {
     let maps = FieldMaps::new(g);
     let w = gauss_field_weights(e);
     maps.project(&weigh_fields(&w, maps.apply(x)))
@@ -446,30 +490,39 @@ pub fn inertia_full(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> Iner
 /// element's state and `v`, written over `m` and `c`: what the stage calls, so the
 /// matrices go straight to its output.
 /// (public for the element bench's split of the stage)
-pub fn mass_and_rates(r: &GradRows, v: &Vec12, m: &mut Mat12, c: &mut Mat12) {
+pub fn mass_and_rates<B: Lane>(
+    r: &GradRows<B>,
+    v: &[B; NDOF],
+    m: &mut [[B; NDOF]; NDOF],
+    c: &mut [[B; NDOF]; NDOF],
+) {
     mass_into(&r.g, &r.w, m);
+    let z = B::cst(0.0);
     if r.rates {
         for (j, cj) in c.iter_mut().enumerate() {
-            let mut acc_c = [0.0; NDOF];
+            let mut acc_c = [z; NDOF];
             for ((row, rowd), wr) in r.g.iter().zip(&r.gdot).zip(&r.w) {
-                let a = 2.0 * wr * row[j];
+                let a = B::cst(2.0) * *wr * row[j];
                 for (x, y) in acc_c.iter_mut().zip(rowd) {
-                    *x += a * y;
+                    *x = *x + a * *y;
                 }
             }
             *cj = acc_c;
         }
         for node in 0..2 {
             let o = 6 * node + 3;
-            let sk = crate::math::skew([v[o], v[o + 1], v[o + 2]]);
+            let (x, y, w) = (v[o], v[o + 1], v[o + 2]);
+            // skew(ω), as `crate::math::skew` writes it
+            let sk = [[z, -w, y], [w, z, -x], [-y, x, z]];
             for (j, cj) in c.iter_mut().enumerate() {
                 for k in 0..3 {
-                    cj[o + k] += (0..3).map(|i| m[j][o + i] * sk[i][k]).sum::<f64>();
+                    let t = (0..3).fold(B::cst(-0.0), |a, i| a + m[j][o + i] * sk[i][k]);
+                    cj[o + k] = cj[o + k] + t;
                 }
             }
         }
     } else {
-        *c = [[0.0; NDOF]; NDOF];
+        *c = [[z; NDOF]; NDOF];
     }
 }
 
@@ -497,7 +550,7 @@ pub fn inertia_residual(e: &ElemData, s: &ElemState, v: &Vec12, acc: &Vec12) -> 
 /// floating-point operations.
 #[inline]
 pub fn gradients_closed_generic<R: Real>(
-    e: &ElemData,
+    e: &ElemData<R::Base>,
     u1: V3<R>,
     u2: V3<R>,
     t1: &M3<R>,
@@ -536,21 +589,21 @@ impl<R: Real> RowSink<R> for [[R; NDOF]; 36] {
 
 /// Dual-number rows g + ε ġ written straight into g and ġ (the same additions a [`Dual`]
 /// does, so both are bit-identical to splitting a dual array afterwards).
-pub(super) struct SplitRows<'a> {
-    g: &'a mut [[f64; NDOF]; 36],
-    gdot: &'a mut [[f64; NDOF]; 36],
+pub(super) struct SplitRows<'a, B> {
+    g: &'a mut [[B; NDOF]; 36],
+    gdot: &'a mut [[B; NDOF]; 36],
 }
 
-impl RowSink<Dual> for SplitRows<'_> {
+impl<B: Lane> RowSink<Dual<B>> for SplitRows<'_, B> {
     #[inline(always)]
-    fn set(&mut self, q: usize, j: usize, x: Dual) {
+    fn set(&mut self, q: usize, j: usize, x: Dual<B>) {
         self.g[q][j] = x.v;
         self.gdot[q][j] = x.d;
     }
     #[inline(always)]
     fn add_cst(&mut self, q: usize, j: usize, c: f64) {
-        self.g[q][j] += c;
-        self.gdot[q][j] += 0.0;
+        self.g[q][j] = self.g[q][j] + B::cst(c);
+        self.gdot[q][j] = self.gdot[q][j] + B::cst(0.0);
     }
 }
 

@@ -19,7 +19,7 @@
 //! section forces and gravity energy, shared by the force and inertia routes.
 
 use super::ad::{
-    mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, HyperDual, Jet2, Real, M3, V3,
+    mcol, mvec, vadd, vcross, vdot, vscale, vsub, Dual, HyperDual, Jet2, Lane, Real, M3, V3,
 };
 use super::inertia::*;
 use crate::math::{Mat3, Vec3};
@@ -29,19 +29,19 @@ pub const NDOF: usize = 12;
 pub type Vec12 = [f64; NDOF];
 pub type Mat12 = [[f64; NDOF]; NDOF];
 
-/// Undeformed data of one element.
+/// Undeformed data of one element (of four in [`super::ad::F4`] lanes: `ElemData<F4>`).
 #[derive(Clone, Copy, Debug)]
-pub struct ElemData {
-    pub props: BeamProps,
+pub struct ElemData<B = f64> {
+    pub props: BeamProps<B>,
     /// initial convected frame (columns x along the chord, y, z), global
-    pub frame0: Mat3,
+    pub frame0: M3<B>,
     /// initial chord x2 − x1
-    pub chord0: Vec3,
+    pub chord0: V3<B>,
     /// initial length |chord0|
-    pub l0: f64,
+    pub l0: B,
 }
 
-impl ElemData {
+impl ElemData<f64> {
     pub fn new(props: BeamProps, frame0: Mat3, x1: Vec3, x2: Vec3) -> Self {
         let chord0 = crate::math::sub(x2, x1);
         ElemData {
@@ -80,19 +80,19 @@ pub struct Kin<R> {
 /// Convected frame, deformation angles and stretch (paper eqs. 5-10).
 #[inline]
 pub fn kinematics<R: Real>(
-    chord0: Vec3,
-    l0: f64,
+    chord0: V3<R::Base>,
+    l0: R::Base,
     u1: V3<R>,
     u2: V3<R>,
     t1: &M3<R>,
     t2: &M3<R>,
 ) -> Kin<R> {
-    let big_x = [R::cst(chord0[0]), R::cst(chord0[1]), R::cst(chord0[2])];
+    let big_x = chord0.map(R::lift);
     let d = vsub(u2, u1);
     let lvec = vadd(big_x, d);
     let len = vdot(lvec, lvec).sqrt();
     // cancellation-free ℓ − L0: small strains on long elements stay exact in f32 too
-    let u1 = (R::cst(2.0) * vdot(big_x, d) + vdot(d, d)) / (len + R::cst(l0));
+    let u1 = (R::cst(2.0) * vdot(big_x, d) + vdot(d, d)) / (len + R::lift(l0));
     let e = vscale(lvec, R::cst(1.0) / len);
     let c = vcross(e, mcol(t1, 1));
     let tc3 = vscale(c, R::cst(1.0) / vdot(c, c).sqrt());
@@ -128,7 +128,7 @@ pub fn kinematics<R: Real>(
 
 /// Bernoulli strain energy (paper eq. 21) of the deformation measures.
 #[inline]
-pub fn energy<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> R {
+pub fn energy<R: Real>(p: &BeamProps<R::Base>, l0: R::Base, k: &Kin<R>) -> R {
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
     let half = R::cst(0.5);
     let tw = fx2 - fx1;
@@ -136,10 +136,11 @@ pub fn energy<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> R {
     let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
     let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
     let s = stretch(l0, k);
-    half * R::cst(p.ea / l0) * s * s
-        + half * R::cst(p.gj / l0) * tw * tw
-        + R::cst(2.0 * p.eiz / l0) * bz
-        + R::cst(2.0 * p.eiy / l0) * by
+    let two: R::Base = Real::cst(2.0);
+    half * R::lift(p.ea / l0) * s * s
+        + half * R::lift(p.gj / l0) * tw * tw
+        + R::lift(two * p.eiz / l0) * bz
+        + R::lift(two * p.eiy / l0) * by
 }
 
 /// Mean axial stretch of the neutral axis: the chord change plus the length the bending
@@ -150,12 +151,12 @@ pub fn energy<R: Real>(p: &BeamProps, l0: f64, k: &Kin<R>) -> R {
 /// O(h²) with a large constant (−0.6 % on the third flap mode of a rotating cantilever at
 /// Ω̄ = 10 with 12 elements); with it they match the published tables to 1e-4.
 #[inline]
-pub fn stretch<R: Real>(l0: f64, k: &Kin<R>) -> R {
+pub fn stretch<R: Real>(l0: R::Base, k: &Kin<R>) -> R {
     let [_, fy1, fz1, _, fy2, fz2] = k.phi;
     let two = R::cst(2.0);
     let q = two * fy1 * fy1 - fy1 * fy2 + two * fy2 * fy2 + two * fz1 * fz1 - fz1 * fz2
         + two * fz2 * fz2;
-    k.u1 + R::cst(l0 / 30.0) * q
+    k.u1 + R::lift(l0 / Real::cst(30.0)) * q
 }
 
 /// Position field x_P = a + y b + z c at station ξ (see module docs), with `x1` node 1's
@@ -289,14 +290,14 @@ pub(super) fn perturb(x: Vec3, t: &Mat3, da: &[f64], db: &[f64]) -> (V3<HyperDua
 /// in [`Jet2`] numbers: bit-identical to [`perturb`] along (d, d), whose mixed part
 /// ½(w × (w × t) + w × (w × t)) is w × (w × t) exactly.
 #[inline]
-pub(super) fn perturb_jet(x: Vec3, t: &Mat3, d: &[f64]) -> (V3<Jet2>, M3<Jet2>) {
-    let xp = [0, 1, 2].map(|i| Jet2::new(x[i], d[i], 0.0));
+pub(super) fn perturb_jet<T: Lane>(x: V3<T>, t: &M3<T>, d: &[T]) -> (V3<Jet2<T>>, M3<Jet2<T>>) {
+    let xp = [0, 1, 2].map(|i| Jet2::new(x[i], d[i], T::cst(0.0)));
     let w = [d[3], d[4], d[5]];
-    let mut tp = [[Jet2::default(); 3]; 3];
+    let mut tp = [[Jet2::<T>::default(); 3]; 3];
     for j in 0..3 {
-        let tj = crate::math::col(t, j);
-        let a = crate::math::cross(w, tj);
-        let aa = crate::math::cross(w, a);
+        let tj = mcol(t, j);
+        let a = vcross(w, tj);
+        let aa = vcross(w, a);
         for i in 0..3 {
             tp[i][j] = Jet2::new(tj[i], a[i], aa[i]);
         }
@@ -321,13 +322,13 @@ pub(super) fn kin_hd(
 
 /// Node position and frame perturbed along one element-dof direction in dual numbers.
 #[inline]
-pub(super) fn perturb_dual(x: Vec3, t: &Mat3, d: &[f64]) -> (V3<Dual>, M3<Dual>) {
+pub(super) fn perturb_dual<T: Lane>(x: V3<T>, t: &M3<T>, d: &[T]) -> (V3<Dual<T>>, M3<Dual<T>>) {
     let xp = [0, 1, 2].map(|i| Dual::new(x[i], d[i]));
     let w = [d[3], d[4], d[5]];
-    let mut tp = [[Dual::default(); 3]; 3];
+    let mut tp = [[Dual::<T>::default(); 3]; 3];
     for j in 0..3 {
-        let tj = crate::math::col(t, j);
-        let a = crate::math::cross(w, tj);
+        let tj = mcol(t, j);
+        let a = vcross(w, tj);
         for i in 0..3 {
             tp[i][j] = Dual::new(tj[i], a[i]);
         }

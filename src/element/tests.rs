@@ -698,7 +698,7 @@ fn second_order_jets_give_the_hyper_dual_second_derivative_bit_for_bit() {
         let (e, s) = random_case(&mut rng, 0.1);
         let v: Vec12 = std::array::from_fn(|_| 3.0 * rng.next());
         let (t1, t2) = node_frames(&e, &s);
-        let jets = super::inertia::field_jets(&e, &s, &t1, &t2, &v);
+        let jets = super::inertia::field_jets(&e, (s.u1, s.u2, &t1, &t2), &v);
         let hd = super::inertia::field_derivs(&e, &s, &t1, &t2, &v, &v);
         for (jg, hg) in jets.iter().zip(&hd) {
             for (jf, hf) in jg.iter().zip(hg) {
@@ -739,6 +739,137 @@ fn factored_field_products_equal_the_gradient_rows_to_round_off() {
                 (new.s[i] - sv[i]).abs() <= 1e-12 * scale,
                 "s[{i}] case {case}"
             );
+        }
+    }
+}
+
+/// Every number of an output as bits (so +0 and −0, and NaN payloads, count as different).
+fn out_bits(o: &ElemOut, matrices: bool) -> Vec<u64> {
+    let mut b: Vec<u64> =
+        o.f.iter()
+            .chain(&o.s)
+            .chain(&o.finert)
+            .chain(&o.mv)
+            .map(|x| x.to_bits())
+            .collect();
+    b.push(o.energy.to_bits());
+    if matrices {
+        b.extend(
+            o.k.iter()
+                .chain(&o.m)
+                .chain(&o.c)
+                .flatten()
+                .map(|x| x.to_bits()),
+        );
+    }
+    b
+}
+
+/// Eleven elements with their own sections and lengths (two full groups of four lanes and
+/// a partial one), every third at rest, so lanes mix moving and resting elements.
+fn lane_cases(seed: u64) -> (Vec<ElemData>, Vec<ElemIn>) {
+    let mut rng = Lcg(seed);
+    (0..11)
+        .map(|c| {
+            let (mut e, s, v12, acc) = random_motion(&mut rng, c % 3 == 0);
+            let f = 1.0 + 0.5 * rng.next();
+            let p = &mut e.props;
+            (p.ea, p.eiy, p.eiz, p.gj) = (p.ea * f, p.eiy / f, p.eiz * f * f, p.gj * (2.0 - f));
+            (p.rho_a, p.rho_iy, p.rho_iz) = (p.rho_a * f, p.rho_iy * f * f, p.rho_iz / f);
+            (e, ElemIn { state: s, v12, acc })
+        })
+        .unzip()
+}
+
+#[test]
+fn elements_in_simd_lanes_give_the_bits_each_element_gives_alone() {
+    // the stage evaluates four elements per lane group; a variant's numbers must not
+    // depend on which elements (of its own or of other variants) share its lanes
+    let (elems, inputs) = lane_cases(31);
+    for inertia in [true, false] {
+        let mut lanes = vec![ElemOut::default(); elems.len()];
+        CpuEval
+            .evaluate(&elems, &inputs, inertia, &mut lanes)
+            .unwrap();
+        let mut res = vec![ElemOut::default(); elems.len()];
+        CpuEval
+            .evaluate_residual(&elems, &inputs, inertia, &mut res)
+            .unwrap();
+        for (k, (e, i)) in elems.iter().zip(&inputs).enumerate() {
+            let mut alone = ElemOut::default();
+            CpuEval::one(e, i, inertia, &mut alone);
+            assert_eq!(
+                out_bits(&lanes[k], true),
+                out_bits(&alone, true),
+                "full, element {k}"
+            );
+            assert_eq!(lanes[k].forces_of, alone.forces_of);
+            let mut alone = ElemOut::default();
+            CpuEval::one_residual(e, i, inertia, &mut alone);
+            assert_eq!(
+                out_bits(&res[k], false),
+                out_bits(&alone, false),
+                "residual, element {k}"
+            );
+            assert_eq!(res[k].forces_of, alone.forces_of);
+        }
+    }
+}
+
+#[test]
+fn a_batch_fills_lanes_across_requests_and_each_request_keeps_its_own_bits() {
+    // requests of different lengths and kinds (full, residual-only after a full one at
+    // the same positions, i.e. memoised, and without inertia) in one batched call
+    let (elems, inputs) = lane_cases(37);
+    let parts = [0..5, 5..7, 7..11];
+    let mut outs: Vec<Vec<ElemOut>> = parts
+        .iter()
+        .map(|r| vec![ElemOut::default(); r.len()])
+        .collect();
+    // the second request was evaluated in full before: its residual reuses the forces
+    CpuEval
+        .evaluate(&elems[5..7], &inputs[5..7], true, &mut outs[1])
+        .unwrap();
+    let mut later = inputs.clone();
+    for i in later.iter_mut() {
+        i.acc = i.acc.map(|a| 0.5 * a + 1.0);
+    }
+    let kinds = [(false, true), (true, true), (true, false)];
+    let mut expect = outs.clone();
+    for ((r, (residual, inertia)), o) in parts.iter().zip(kinds).zip(expect.iter_mut()) {
+        for ((e, i), o) in elems[r.clone()]
+            .iter()
+            .zip(&later[r.clone()])
+            .zip(o.iter_mut())
+        {
+            if residual {
+                CpuEval::one_residual(e, i, inertia, o);
+            } else {
+                CpuEval::one(e, i, inertia, o);
+            }
+        }
+    }
+    let mut reqs: Vec<EvalRequest<'_>> = parts
+        .iter()
+        .zip(kinds)
+        .zip(outs.iter_mut())
+        .map(|((r, (residual, inertia)), out)| EvalRequest {
+            elems: &elems[r.clone()],
+            inputs: &later[r.clone()],
+            out,
+            residual,
+            inertia,
+        })
+        .collect();
+    CpuEval.evaluate_batch(&mut reqs).unwrap();
+    for (k, ((o, x), (residual, _))) in outs.iter().zip(&expect).zip(kinds).enumerate() {
+        for (a, b) in o.iter().zip(x) {
+            assert_eq!(
+                out_bits(a, !residual),
+                out_bits(b, !residual),
+                "request {k}"
+            );
+            assert_eq!(a.forces_of, b.forces_of, "request {k}");
         }
     }
 }

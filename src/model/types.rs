@@ -9,18 +9,20 @@ use crate::math::{Mat3, Vec3};
 /// Local axes: x along the element, y = the beam's `orientation` vector made
 /// perpendicular to x, z = x × y. `eiy` resists bending about local y (displacement
 /// along z), `eiz` bending about local z (displacement along y).
+/// Generic over the number type so the element code can read four elements' properties
+/// from SIMD lanes (`BeamProps<crate::element::ad::F4>`); the model's are `f64`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BeamProps {
-    pub ea: f64,
-    pub eiy: f64,
-    pub eiz: f64,
-    pub gj: f64,
+pub struct BeamProps<B = f64> {
+    pub ea: B,
+    pub eiy: B,
+    pub eiz: B,
+    pub gj: B,
     /// mass per unit length [kg/m]
-    pub rho_a: f64,
+    pub rho_a: B,
     /// rotary inertia per unit length about local y, ∫ρ z² dA [kg·m]
-    pub rho_iy: f64,
+    pub rho_iy: B,
     /// rotary inertia per unit length about local z, ∫ρ y² dA [kg·m]
-    pub rho_iz: f64,
+    pub rho_iz: B,
 }
 
 /// One two-node beam element.
