@@ -334,8 +334,13 @@ fn slurm_array_merge_equals_the_single_sweep_and_a_cancelled_task_is_resumed() {
     // 48 variants of ~0.5-1 s each (test profile): a task of 12 runs ~10 s, so it can be
     // cancelled after its first flush (2 s after its first variant) and well before its
     // end. (With t_end = 4 a task took ~2.5 s on an idle machine and sometimes finished
-    // before the cancel arrived.)
-    let campaign = format!("{} --vary omega=1:5:{VARIANTS} --set t_end=20", s(&model));
+    // before the cancel arrived.) `--batch 1`: variants then finish one by one; in lockstep
+    // batches a task's variants finish together, and once the SIMD-lane stage made them
+    // faster the task's last batch ended before the cancel arrived (session 21).
+    let campaign = format!(
+        "{} --vary omega=1:5:{VARIANTS} --set t_end=20 --batch 1",
+        s(&model)
+    );
 
     let reference = work.join("single.h5");
     let _ = std::fs::remove_file(&reference);
