@@ -37,7 +37,7 @@ pub struct Grad<R> {
 
 /// Deformation measures and their first derivatives (generic: in [`Dual`] numbers the
 /// derivative of this gradient gives the tangent).
-#[inline]
+#[inline(always)]
 pub fn gradient<R: Real>(
     chord0: V3<R::Base>,
     l0: R::Base,
@@ -156,7 +156,7 @@ pub(super) fn energy_partials<R: Real>(
 
 /// f_j = N ∂ℓ/∂q_j + Σ_a m_a ∂φ_a/∂q_j from the gradient and the energy partials.
 #[inline]
-fn force_from<R: Real>(g: &Grad<R>, m: &[R; 6], n: R) -> [R; NDOF] {
+pub(super) fn force_from<R: Real>(g: &Grad<R>, m: &[R; 6], n: R) -> [R; NDOF] {
     let mut f = [R::cst(0.0); NDOF];
     for (j, fj) in f.iter_mut().enumerate() {
         let mut acc = n * g.dlen[j];
@@ -219,15 +219,17 @@ pub(super) fn shared_parts_at<B: Lane>(
     (g, (m, n), f, u)
 }
 
-/// The tangent K from [`shared_parts_at`]'s gradient and partials, in any lanes.
+/// The tangent K from [`shared_parts_at`]'s gradient and partials, in any lanes, written
+/// over `k`.
 #[inline(always)]
 pub(super) fn tangent_at<B: Lane>(
     e: &ElemData<B>,
     g: &Grad<B>,
     m: &[B; 6],
     n: B,
-) -> [[B; NDOF]; NDOF] {
-    tangent(&e.props, e.l0, g, m, n)
+    k: &mut [[B; NDOF]; NDOF],
+) {
+    tangent_into(&e.props, e.l0, g, m, n, k);
 }
 
 /// [`internal_force_tangent`] and the strain energy (bit-identical to [`strain_energy`],
@@ -244,22 +246,6 @@ pub fn tangent_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, V
     let (g, (m, n), f, u) = shared_parts_at(e, s.u1, s.u2, &t1, &t2);
     let k = tangent(&e.props, e.l0, &g, &m, n);
     ((t1, t2), g, f, k, u)
-}
-
-/// K += a bᵀ over the rows `rows` (a indexed by row, b by column).
-#[inline(always)]
-fn rank1<R: Real>(
-    k: &mut [[R; NDOF]; NDOF],
-    rows: std::ops::Range<usize>,
-    a: &[R; NDOF],
-    b: &[R; NDOF],
-) {
-    for r in rows {
-        let ar = a[r];
-        for (x, y) in k[r].iter_mut().zip(b) {
-            *x = *x + ar * *y;
-        }
-    }
 }
 
 /// Internal force and its consistent tangent K_jk = ∂f_j/∂q_k in closed form, the state
@@ -313,14 +299,35 @@ fn tangent<R: Real>(
     m: &[R; 6],
     n: R,
 ) -> [[R; NDOF]; NDOF] {
+    let mut k = [[R::cst(0.0); NDOF]; NDOF];
+    tangent_into(p, l0, g, m, n, &mut k);
+    k
+}
+
+/// [`tangent`] written over `k` (every entry).
+///
+/// K is a sum of rank-one terms a bᵀ (the material part, the moments' ψ terms and the
+/// translation rows) and of row corrections (the spin rows). It is formed row by row: a
+/// row's 12 entries stay in registers while every term is added in one fixed order, so
+/// each entry is the same sum, in the same order, as adding whole rank-one matrices one
+/// after the other gives, without zeroing K and passing it through memory once per term.
+#[inline(always)]
+fn tangent_into<R: Real>(
+    p: &BeamProps<R::Base>,
+    l0: R::Base,
+    g: &Grad<R>,
+    m: &[R; 6],
+    n: R,
+    k: &mut [[R; NDOF]; NDOF],
+) {
     let z = R::cst(0.0);
     let half = R::cst(0.5);
     let four = R::cst(4.0);
-    let mut k = [[z; NDOF]; NDOF];
+    let two_b: R::Base = Real::cst(2.0);
     let phi = g.kin.phi;
     let dp = &g.dphi;
-    // material part
-    let two_b: R::Base = Real::cst(2.0);
+    // material part: the rank-one terms of EA ∂s ∂sᵀ, GJ on the twist and the two bending
+    // planes
     let c30 = R::lift(l0 / Real::cst(30.0));
     let h = [
         z,
@@ -335,18 +342,20 @@ fn tangent<R: Real>(
     });
     let ea = R::lift(p.ea / l0);
     let eads = ds.map(|x| ea * x);
-    rank1(&mut k, 0..NDOF, &ds, &eads);
     let gj = R::lift(p.gj / l0);
     let tw: [R; NDOF] = std::array::from_fn(|j| dp[3][j] - dp[0][j]);
     let gjtw = tw.map(|x| gj * x);
-    rank1(&mut k, 0..NDOF, &tw, &gjtw);
     let gn = n * c30;
-    for (c, (a1, a2)) in [(two_b * p.eiy / l0, (1, 4)), (two_b * p.eiz / l0, (2, 5))] {
+    // per bending plane (y: φy1, φy2; z: φz1, φz2) the rows that multiply ∂φ_a1 and ∂φ_a2
+    let mut bend = [[z; NDOF]; 4];
+    for (pl, c) in [two_b * p.eiy / l0, two_b * p.eiz / l0]
+        .into_iter()
+        .enumerate()
+    {
+        let (a1, a2) = (1 + pl, 4 + pl);
         let (d11, d12) = (R::lift(two_b * c) + four * gn, R::lift(c) - gn);
-        let r1: [R; NDOF] = std::array::from_fn(|j| d11 * dp[a1][j] + d12 * dp[a2][j]);
-        let r2: [R; NDOF] = std::array::from_fn(|j| d12 * dp[a1][j] + d11 * dp[a2][j]);
-        rank1(&mut k, 0..NDOF, &dp[a1], &r1);
-        rank1(&mut k, 0..NDOF, &dp[a2], &r2);
+        bend[2 * pl] = std::array::from_fn(|j| d11 * dp[a1][j] + d12 * dp[a2][j]);
+        bend[2 * pl + 1] = std::array::from_fn(|j| d12 * dp[a1][j] + d11 * dp[a2][j]);
     }
     // geometric part: the moments' share, Σ_i ψ_iᵀ A_i ψ_i + the rotation rows' −(c × ν_i)·Θ
     let tc = &g.kin.tc;
@@ -354,6 +363,8 @@ fn tangent<R: Real>(
     let eps = |mm: usize| tc[mm];
     let [sx, sy, sz] = &g.spin;
     let mut nu = [z; 3];
+    let mut pr = [[[z; NDOF]; 3]; 2];
+    let mut spin_rows = [[[z; NDOF]; 3]; 2];
     for i in 0..2 {
         let mu = [m[3 * i], m[3 * i + 1], m[3 * i + 2]];
         let ph = [phi[3 * i], phi[3 * i + 1], phi[3 * i + 2]];
@@ -373,18 +384,14 @@ fn tangent<R: Real>(
         });
         let ps = &g.psi[i];
         for r in 0..3 {
-            let pr: [R; NDOF] = std::array::from_fn(|j| {
+            pr[i][r] = std::array::from_fn(|j| {
                 a[r][0] * ps[0][j] + a[r][1] * ps[1][j] + a[r][2] * ps[2][j]
             });
-            rank1(&mut k, 0..NDOF, &ps[r], &pr);
         }
         // rows of node i's spins: −(ε_m × ν_i) · Θ_k
         for mm in 0..3 {
             let c = vcross(eps(mm), nui);
-            let row = &mut k[6 * i + 3 + mm];
-            for j in 0..NDOF {
-                row[j] = row[j] - (c[0] * sx[j] + c[1] * sy[j] + c[2] * sz[j]);
-            }
+            spin_rows[i][mm] = std::array::from_fn(|j| c[0] * sx[j] + c[1] * sy[j] + c[2] * sz[j]);
         }
         for c in 0..3 {
             nu[c] = nu[c] + nui[c];
@@ -424,21 +431,45 @@ fn tangent<R: Real>(
     let b3: [R; NDOF] = std::array::from_fn(|j| {
         -(n * sy[j]) - nz * sx[j] * il - alpha * g.dlen[j] * il2 + nx * dab[j] * il
     });
-    for rows in [0..3, 6..9] {
-        rank1(&mut k, rows.clone(), &ev, &be);
-        rank1(&mut k, rows.clone(), &c2, &b2);
-        rank1(&mut k, rows, &c3, &b3);
-    }
     // node 1's spin rows: θx_j = e_m − (a/b) t_c2,m, so −ν_x D_k θx_j
     let r_e: [R; NDOF] = std::array::from_fn(|j| -(nx * ab * sz[j]));
     let r_2: [R; NDOF] = std::array::from_fn(|j| -(nx * (sz[j] - dab[j])));
     let r_3: [R; NDOF] = std::array::from_fn(|j| nx * (sy[j] + ab * sx[j]));
-    for mm in 0..3 {
-        let t = eps(mm);
-        let row = &mut k[3 + mm];
-        for j in 0..NDOF {
-            row[j] = row[j] + (t[0] * r_e[j] + t[1] * r_2[j] + t[2] * r_3[j]);
+    // K row by row, the terms in the order above
+    let add = |row: &mut [R; NDOF], a: R, b: &[R; NDOF]| {
+        for (x, y) in row.iter_mut().zip(b) {
+            *x = *x + a * *y;
         }
+    };
+    for (r, kr) in k.iter_mut().enumerate() {
+        let mut row = [z; NDOF];
+        add(&mut row, ds[r], &eads);
+        add(&mut row, tw[r], &gjtw);
+        for pl in 0..2 {
+            add(&mut row, dp[1 + pl][r], &bend[2 * pl]);
+            add(&mut row, dp[4 + pl][r], &bend[2 * pl + 1]);
+        }
+        for i in 0..2 {
+            for q in 0..3 {
+                add(&mut row, g.psi[i][q][r], &pr[i][q]);
+            }
+            if r / 3 == 2 * i + 1 {
+                for (x, y) in row.iter_mut().zip(&spin_rows[i][r % 3]) {
+                    *x = *x - *y;
+                }
+            }
+        }
+        if r / 3 == 0 || r / 3 == 2 {
+            add(&mut row, ev[r], &be);
+            add(&mut row, c2[r], &b2);
+            add(&mut row, c3[r], &b3);
+        }
+        if r / 3 == 1 {
+            let t = eps(r % 3);
+            for j in 0..NDOF {
+                row[j] = row[j] + (t[0] * r_e[j] + t[1] * r_2[j] + t[2] * r_3[j]);
+            }
+        }
+        *kr = row;
     }
-    k
 }

@@ -360,10 +360,15 @@ fn put_mat(
 fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
     let p = Packed::new(items);
     let pos = (p.u1, p.u2, &p.t1, &p.t2);
-    let (g, (m, n), f, u) = force::shared_parts_at(&p.e, p.u1, p.u2, &p.t1, &p.t2);
-    let k = force::tangent_at(&p.e, &g, &m, n);
+    // the pieces of `force::shared_parts_at` one by one: returned together, the
+    // gradient (8 kB in lanes) was copied once more
+    let g = force::gradient(p.e.chord0, p.e.l0, p.u1, p.u2, &p.t1, &p.t2);
+    let (m, n) = force::energy_partials(&p.e.props, p.e.l0, &g.kin);
+    let f = force::force_from(&g, &m, n);
+    let u = kinematics::energy(&p.e.props, p.e.l0, &g.kin);
+    force::tangent_at(&p.e, &g, &m, n, &mut sc.k);
     put(&f, items, |o| &mut o.f);
-    put_mat(&k, items, |o| &mut o.k);
+    put_mat(&sc.k, items, |o| &mut o.k);
     for (l, (_, i, o)) in items.iter_mut().enumerate() {
         o.energy = u.as_array()[l];
         if inertia {
@@ -405,6 +410,7 @@ fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
 /// written before it is read (kept across the groups of a call, so zeroed once a call).
 #[derive(Default)]
 struct LaneScratch {
+    k: [[F4; NDOF]; NDOF],
     rows: inertia::GradRows<F4>,
     m: [[F4; NDOF]; NDOF],
     c: [[F4; NDOF]; NDOF],
@@ -455,7 +461,7 @@ fn lanes_over(items: Vec<Item<'_>>, residual: bool, inertia: bool) {
             residual_lanes(chunk, inertia);
         }
     } else {
-        let mut sc = Box::<LaneScratch>::default();
+        let mut sc = LaneScratch::default();
         for chunk in items.chunks_mut(LANES) {
             full_lanes(chunk, inertia, &mut sc);
         }
