@@ -469,13 +469,16 @@ fn lanes_over(items: Vec<Item<'_>>, residual: bool, inertia: bool) {
 }
 
 /// One call's elements as lane items.
-fn items<'x>(elems: &'x [ElemData], inputs: &'x [ElemIn], out: &'x mut [ElemOut]) -> Vec<Item<'x>> {
+fn items<'x>(
+    elems: &'x [ElemData],
+    inputs: &'x [ElemIn],
+    out: &'x mut [ElemOut],
+) -> impl Iterator<Item = Item<'x>> {
     elems
         .iter()
         .zip(inputs)
         .zip(out.iter_mut())
         .map(|((e, i), o)| (e, i, o))
-        .collect()
 }
 
 impl ElementEval for CpuEval {
@@ -486,7 +489,7 @@ impl ElementEval for CpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        lanes_over(items(elems, inputs, out), false, inertia);
+        lanes_over(items(elems, inputs, out).collect(), false, inertia);
         Ok(())
     }
     fn evaluate_residual(
@@ -496,7 +499,7 @@ impl ElementEval for CpuEval {
         inertia: bool,
         out: &mut [ElemOut],
     ) -> Result<(), EvalError> {
-        lanes_over(items(elems, inputs, out), true, inertia);
+        lanes_over(items(elems, inputs, out).collect(), true, inertia);
         Ok(())
     }
     /// Lanes filled across the requests: one group per kind of evaluation (full or
