@@ -149,20 +149,28 @@ fn stage_parts(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) {
     );
 }
 
+/// `ne` copies of the element and its input.
+fn copies(
+    e: &ElemData,
+    s: &ElemState,
+    v: &Vec12,
+    a: &Vec12,
+    ne: usize,
+) -> (Vec<ElemData>, Vec<ElemIn>) {
+    let input = ElemIn {
+        state: *s,
+        v12: *v,
+        acc: *a,
+    };
+    (vec![*e; ne], vec![input; ne])
+}
+
 /// What a Newton iteration pays per element: the stage's full evaluation (force, K,
 /// energy, M, S, C and the inertial products) and its residual-only one, over a batch of
 /// ten elements as the blade has, outputs written in place.
 fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) -> [f64; 2] {
     let ne = 10;
-    let elems = vec![*e; ne];
-    let inputs = vec![
-        ElemIn {
-            state: *s,
-            v12: *v,
-            acc: *a,
-        };
-        ne
-    ];
+    let (elems, inputs) = copies(e, s, v, a, ne);
     let mut out = vec![ElemOut::default(); ne];
     let n = 4000;
     let mut times = [0.0; 3];
@@ -206,15 +214,7 @@ fn stage_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) -> [f64; 2] {
 /// and no lane is idle (10 elements alone fill 3 groups of 4 with 12 lanes).
 fn batch_report(e: &ElemData, s: &ElemState, v: &Vec12, a: &Vec12) -> [f64; 2] {
     let (nv, ne) = (8, 10);
-    let elems = vec![*e; ne];
-    let inputs = vec![
-        ElemIn {
-            state: *s,
-            v12: *v,
-            acc: *a,
-        };
-        ne
-    ];
+    let (elems, inputs) = copies(e, s, v, a, ne);
     let mut outs = vec![vec![ElemOut::default(); ne]; nv];
     let n = 500;
     let mut times = [0.0; 2];

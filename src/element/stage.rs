@@ -65,6 +65,22 @@ pub fn memo_key(i: &ElemIn) -> [u64; 36] {
 }
 
 impl ElemOut {
+    /// The outputs of an evaluation without inertia: S, M·acc + S and M·v zero.
+    fn no_inertial_forces(&mut self) {
+        self.s = [0.0; NDOF];
+        self.finert = [0.0; NDOF];
+        self.mv = [0.0; NDOF];
+    }
+
+    /// A full evaluation without inertia: M, C and the inertial forces zero, nothing
+    /// memoised.
+    fn no_inertia(&mut self) {
+        self.forces_of = None;
+        self.m = [[0.0; NDOF]; NDOF];
+        self.c = [[0.0; NDOF]; NDOF];
+        self.no_inertial_forces();
+    }
+
     /// `finert` and `mv` from M and S, for backends that return the matrices only.
     pub fn products_from_m(&mut self, i: &ElemIn) {
         for r in 0..NDOF {
@@ -199,12 +215,7 @@ impl CpuEval {
             o.mv = r.mv;
             o.forces_of = Some(memo_key(i));
         } else {
-            o.forces_of = None;
-            o.m = [[0.0; NDOF]; NDOF];
-            o.s = [0.0; NDOF];
-            o.c = [[0.0; NDOF]; NDOF];
-            o.finert = [0.0; NDOF];
-            o.mv = [0.0; NDOF];
+            o.no_inertia();
         }
     }
 
@@ -233,9 +244,7 @@ impl CpuEval {
             o.finert = r.finert;
             o.mv = r.mv;
         } else {
-            o.s = [0.0; NDOF];
-            o.finert = [0.0; NDOF];
-            o.mv = [0.0; NDOF];
+            o.no_inertial_forces();
         }
     }
 }
@@ -374,12 +383,7 @@ fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
         if inertia {
             o.forces_of = Some(memo_key(i));
         } else {
-            o.forces_of = None;
-            o.m = [[0.0; NDOF]; NDOF];
-            o.s = [0.0; NDOF];
-            o.c = [[0.0; NDOF]; NDOF];
-            o.finert = [0.0; NDOF];
-            o.mv = [0.0; NDOF];
+            o.no_inertia();
         }
     }
     if !inertia {
@@ -437,9 +441,7 @@ fn residual_lanes(items: &mut [Item<'_>], inertia: bool) {
             o.forces_of = Some(memo_key(i));
         } else {
             o.forces_of = None;
-            o.s = [0.0; NDOF];
-            o.finert = [0.0; NDOF];
-            o.mv = [0.0; NDOF];
+            o.no_inertial_forces();
         }
     }
 }
