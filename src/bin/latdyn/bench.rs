@@ -93,6 +93,10 @@ pub struct ThroughputRow {
     pub wall_s: f64,
     pub variant_steps: usize,
     pub variant_steps_per_s: f64,
+    /// thread time per step and element [µs]: campaign wall × threads (at most one per
+    /// variant) / (variant-steps × elements), everything a step costs (element stage,
+    /// assembly, LU, output) included
+    pub step_element_us: f64,
     /// campaign wall × threads / variants over the same variants run alone, one by one
     pub cost_per_variant_vs_alone: f64,
     /// shares of the summed per-variant time
@@ -990,9 +994,11 @@ fn speeds(n: usize) -> Vec<Vec<(String, f64)>> {
         .collect()
 }
 
-fn run_campaign(c: &Campaign) -> Result<(Vec<ensemble::Outcome>, f64), BenchError> {
+/// The campaign's outcomes, its wall time [s] and the elements of one variant.
+fn run_campaign(c: &Campaign) -> Result<(Vec<ensemble::Outcome>, f64, usize), BenchError> {
     const P: &str = "ensemble";
     let p = ensemble::prepare(c).map_err(|e| run_err(P, e))?;
+    let elements = p.models.first().map_or(0, |m| m.elem_data.len());
     let t0 = Instant::now();
     let out = ensemble::run(c, &p, &AtomicBool::new(false), false, &|_, _| {})
         .map_err(|e| run_err(P, e))?;
@@ -1003,7 +1009,7 @@ fn run_campaign(c: &Campaign) -> Result<(Vec<ensemble::Outcome>, f64), BenchErro
             format!("variant {}: {}", bad.global_index, bad.message),
         ));
     }
-    Ok((out, wall))
+    Ok((out, wall, elements))
 }
 
 fn ensemble_throughput(
@@ -1018,7 +1024,8 @@ fn ensemble_throughput(
     let mut rows = Vec::new();
     for &n in counts {
         let variants = speeds(n);
-        let (out, wall) = run_campaign(&blade_campaign(opts, variants.clone(), opts.threads))?;
+        let (out, wall, elements) =
+            run_campaign(&blade_campaign(opts, variants.clone(), opts.threads))?;
         // the same work variant by variant: every variant up to 16, then 16 spread ones
         let sample: Vec<usize> = if n <= 16 {
             (0..n).collect()
@@ -1028,7 +1035,7 @@ fn ensemble_throughput(
         let mut alone_wall = 0.0;
         let mut diff = 0.0f64;
         for &i in &sample {
-            let (one, w) = run_campaign(&blade_campaign(opts, vec![variants[i].clone()], 1))?;
+            let (one, w, _) = run_campaign(&blade_campaign(opts, vec![variants[i].clone()], 1))?;
             alone_wall += w;
             for (a, b) in out[i].sensors.iter().zip(&one[0].sensors) {
                 for (x, y) in a
@@ -1056,6 +1063,8 @@ fn ensemble_throughput(
             wall_s: wall,
             variant_steps: steps,
             variant_steps_per_s: steps as f64 / wall,
+            step_element_us: wall * opts.threads.min(n) as f64 / (steps * elements.max(1)) as f64
+                * 1e6,
             cost_per_variant_vs_alone: wall * opts.threads as f64 / n as f64 / alone,
             element_assembly_share: (times.element_s + times.assembly_s) / busy,
             factorization_share: times.factorization_s / busy,
@@ -1063,8 +1072,8 @@ fn ensemble_throughput(
             max_difference_vs_alone: diff,
         };
         log(&format!(
-            "ensemble: {n} variants, {} threads: {wall:.2} s, {:.0} variant-steps/s",
-            opts.threads, row.variant_steps_per_s
+            "ensemble: {n} variants, {} threads: {wall:.2} s, {:.0} variant-steps/s, {:.1} us per step-element",
+            opts.threads, row.variant_steps_per_s, row.step_element_us
         ));
         rows.push(row);
     }
@@ -1133,16 +1142,17 @@ pub fn markdown(r: &BenchReport, command: &str, plot_file: Option<&str>) -> Stri
              stage shares are of the summed per-variant time; \"max |Δ| vs alone\" compares the \
              sensors' min/max/final of the sampled variants (0 = bit-identical).\n\n",
         );
-        s.push_str("| variants | threads | wall [s] | variant-steps | variant-steps/s | cost per variant / alone | element+assembly | factorization | output | max abs diff vs alone |\n");
-        s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+        s.push_str("| variants | threads | wall [s] | variant-steps | variant-steps/s | µs per step-element (thread time) | cost per variant / alone | element+assembly | factorization | output | max abs diff vs alone |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
         for t in &r.throughput {
             s.push_str(&format!(
-                "| {} | {} | {:.3} | {} | {:.0} | {:.2} | {:.0} % | {:.0} % | {:.1} % | {:.1e} |\n",
+                "| {} | {} | {:.3} | {} | {:.0} | {:.1} | {:.2} | {:.0} % | {:.0} % | {:.1} % | {:.1e} |\n",
                 t.variants,
                 t.threads,
                 t.wall_s,
                 t.variant_steps,
                 t.variant_steps_per_s,
+                t.step_element_us,
                 t.cost_per_variant_vs_alone,
                 100.0 * t.element_assembly_share,
                 100.0 * t.factorization_share,
