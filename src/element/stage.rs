@@ -284,8 +284,6 @@ impl Packed {
     fn new(items: &[Item<'_>]) -> Packed {
         let n = items.len();
         let at = |k: usize| &items[k.min(n - 1)];
-        let frames: [(crate::math::Mat3, crate::math::Mat3); LANES] =
-            std::array::from_fn(|k| kinematics::node_frames(at(k).0, &at(k).1.state));
         let p = |f: fn(&BeamProps) -> f64| lanes(|k| f(&at(k).0.props));
         let v3 = |f: &dyn Fn(usize) -> crate::math::Vec3| -> V3<F4> {
             std::array::from_fn(|c| lanes(|k| f(k)[c]))
@@ -293,7 +291,18 @@ impl Packed {
         let m3 = |f: &dyn Fn(usize) -> crate::math::Mat3| -> M3<F4> {
             std::array::from_fn(|r| std::array::from_fn(|c| lanes(|k| f(k)[r][c])))
         };
+        let frame0 = m3(&|k| at(k).0.frame0);
+        // the node frames R_i · frame0 in lanes, as `crate::math::mat_mul` forms them
+        let frame = |r: M3<F4>| -> M3<F4> {
+            std::array::from_fn(|i| {
+                std::array::from_fn(|j| {
+                    r[i][0] * frame0[0][j] + r[i][1] * frame0[1][j] + r[i][2] * frame0[2][j]
+                })
+            })
+        };
         Packed {
+            t1: frame(m3(&|k| at(k).1.state.r1)),
+            t2: frame(m3(&|k| at(k).1.state.r2)),
             e: ElemData {
                 props: BeamProps {
                     ea: p(|q| q.ea),
@@ -304,18 +313,44 @@ impl Packed {
                     rho_iy: p(|q| q.rho_iy),
                     rho_iz: p(|q| q.rho_iz),
                 },
-                frame0: m3(&|k| at(k).0.frame0),
+                frame0,
                 chord0: v3(&|k| at(k).0.chord0),
                 l0: lanes(|k| at(k).0.l0),
             },
             u1: v3(&|k| at(k).1.state.u1),
             u2: v3(&|k| at(k).1.state.u2),
-            t1: m3(&|k| frames[k].0),
-            t2: m3(&|k| frames[k].1),
             v: std::array::from_fn(|j| lanes(|k| at(k).1.v12[j])),
             acc: std::array::from_fn(|j| lanes(|k| at(k).1.acc[j])),
             moving: std::array::from_fn(|k| at(k).1.v12.iter().any(|x| *x != 0.0)),
         }
+    }
+
+    /// The lanes' gradient. `force::shared_parts_at` computes the same pieces, but
+    /// returned together with them the gradient (8 kB in lanes) was copied once more.
+    #[inline(always)]
+    fn gradient(&self) -> force::Grad<F4> {
+        force::gradient(
+            self.e.chord0,
+            self.e.l0,
+            self.u1,
+            self.u2,
+            &self.t1,
+            &self.t2,
+        )
+    }
+
+    /// The energy's partials (moments, axial force), the internal force and the strain
+    /// energy from the lanes' gradient, as `force::shared_parts_at` forms them.
+    #[inline(always)]
+    fn force(&self, g: &force::Grad<F4>) -> ([F4; 6], F4, [F4; NDOF], F4) {
+        let (m, n) = force::energy_partials(&self.e.props, self.e.l0, &g.kin);
+        let f = force::force_from(g, &m, n);
+        (
+            m,
+            n,
+            f,
+            kinematics::energy(&self.e.props, self.e.l0, &g.kin),
+        )
     }
 
     /// `None` when no lane moves, else the bit mask of the moving lanes.
@@ -369,12 +404,8 @@ fn put_mat(
 fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
     let p = Packed::new(items);
     let pos = (p.u1, p.u2, &p.t1, &p.t2);
-    // the pieces of `force::shared_parts_at` one by one: returned together, the
-    // gradient (8 kB in lanes) was copied once more
-    let g = force::gradient(p.e.chord0, p.e.l0, p.u1, p.u2, &p.t1, &p.t2);
-    let (m, n) = force::energy_partials(&p.e.props, p.e.l0, &g.kin);
-    let f = force::force_from(&g, &m, n);
-    let u = kinematics::energy(&p.e.props, p.e.l0, &g.kin);
+    let g = p.gradient();
+    let (m, n, f, u) = p.force(&g);
     force::tangent_at(&p.e, &g, &m, n, &mut sc.k);
     put(&f, items, |o| &mut o.f);
     put_mat(&sc.k, items, |o| &mut o.k);
@@ -424,7 +455,8 @@ struct LaneScratch {
 /// forces are not memoised.
 fn residual_lanes(items: &mut [Item<'_>], inertia: bool) {
     let p = Packed::new(items);
-    let (g, _, f, u) = force::shared_parts_at(&p.e, p.u1, p.u2, &p.t1, &p.t2);
+    let g = p.gradient();
+    let (_, _, f, u) = p.force(&g);
     let forces = inertia.then(|| {
         let pos = (p.u1, p.u2, &p.t1, &p.t2);
         inertia::inertia_forces_at(&p.e, &g, pos, &p.v, &p.acc, p.moving_mask())
