@@ -362,44 +362,37 @@ fn tangent_into<R: Real>(
     // ε_m = T_Cᵀ x̂_m: row m of T_C
     let eps = |mm: usize| tc[mm];
     let [sx, sy, sz] = &g.spin;
-    // per node i: ν_i = G_iᵀ μ_i = ½(tr D_i μ_i − D_iᵀ μ_i) and
-    // A_i = −μ_i φ_iᵀ − ½ D_iᵀ skew(μ_i), with (Dᵀ skew μ)[r][c] = Σ_s D[s][r] (skew μ)[s][c]
-    // (each array built in place: zeroed and then overwritten, they cost a memset each)
-    let mu = |i: usize| [m[3 * i], m[3 * i + 1], m[3 * i + 2]];
-    let nus: [[R; 3]; 2] = std::array::from_fn(|i| {
-        let (mu, d) = (mu(i), &g.rel[i]);
-        let tr = d[0][0] + d[1][1] + d[2][2];
-        std::array::from_fn(|c| {
-            half * (tr * mu[c] - (d[0][c] * mu[0] + d[1][c] * mu[1] + d[2][c] * mu[2]))
-        })
-    });
-    let amat: [[[R; 3]; 3]; 2] = std::array::from_fn(|i| {
-        let (mu, d) = (mu(i), &g.rel[i]);
+    let mut nu = [z; 3];
+    let mut pr = [[[z; NDOF]; 3]; 2];
+    let mut spin_rows = [[[z; NDOF]; 3]; 2];
+    for i in 0..2 {
+        let mu = [m[3 * i], m[3 * i + 1], m[3 * i + 2]];
         let ph = [phi[3 * i], phi[3 * i + 1], phi[3 * i + 2]];
+        let d = &g.rel[i];
+        // G_iᵀ μ_i = ½(tr D μ − Dᵀ μ)
+        let tr = d[0][0] + d[1][1] + d[2][2];
+        let nui: [R; 3] = std::array::from_fn(|c| {
+            half * (tr * mu[c] - (d[0][c] * mu[0] + d[1][c] * mu[1] + d[2][c] * mu[2]))
+        });
+        // A = −μ φᵀ − ½ Dᵀ skew(μ), with (Dᵀ skew μ)[r][c] = Σ_s D[s][r] (skew μ)[s][c]
         let sk = [[z, -mu[2], mu[1]], [mu[2], z, -mu[0]], [-mu[1], mu[0], z]];
-        std::array::from_fn(|r| {
+        let a: [[R; 3]; 3] = std::array::from_fn(|r| {
             std::array::from_fn(|c| {
                 -(mu[r] * ph[c])
                     - half * (d[0][r] * sk[0][c] + d[1][r] * sk[1][c] + d[2][r] * sk[2][c])
             })
-        })
-    });
-    // the rows ψ_iᵀ A_i that multiply ψ_i
-    let pr: [[[R; NDOF]; 3]; 2] = std::array::from_fn(|i| {
-        let (a, ps) = (&amat[i], &g.psi[i]);
-        std::array::from_fn(|r| {
-            std::array::from_fn(|j| a[r][0] * ps[0][j] + a[r][1] * ps[1][j] + a[r][2] * ps[2][j])
-        })
-    });
-    // rows of node i's spins: −(ε_m × ν_i) · Θ_k
-    let spin_rows: [[[R; NDOF]; 3]; 2] = std::array::from_fn(|i| {
-        std::array::from_fn(|mm| {
-            let c = vcross(eps(mm), nus[i]);
-            std::array::from_fn(|j| c[0] * sx[j] + c[1] * sy[j] + c[2] * sz[j])
-        })
-    });
-    let mut nu = [z; 3];
-    for nui in &nus {
+        });
+        let ps = &g.psi[i];
+        for r in 0..3 {
+            pr[i][r] = std::array::from_fn(|j| {
+                a[r][0] * ps[0][j] + a[r][1] * ps[1][j] + a[r][2] * ps[2][j]
+            });
+        }
+        // rows of node i's spins: −(ε_m × ν_i) · Θ_k
+        for mm in 0..3 {
+            let c = vcross(eps(mm), nui);
+            spin_rows[i][mm] = std::array::from_fn(|j| c[0] * sx[j] + c[1] * sy[j] + c[2] * sz[j]);
+        }
         for c in 0..3 {
             nu[c] = nu[c] + nui[c];
         }
