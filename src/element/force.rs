@@ -156,7 +156,7 @@ pub(super) fn energy_partials<R: Real>(
 
 /// f_j = N ∂ℓ/∂q_j + Σ_a m_a ∂φ_a/∂q_j from the gradient and the energy partials.
 #[inline]
-pub(super) fn force_from<R: Real>(g: &Grad<R>, m: &[R; 6], n: R) -> [R; NDOF] {
+fn force_from<R: Real>(g: &Grad<R>, m: &[R; 6], n: R) -> [R; NDOF] {
     let mut f = [R::cst(0.0); NDOF];
     for (j, fj) in f.iter_mut().enumerate() {
         let mut acc = n * g.dlen[j];
@@ -196,40 +196,21 @@ pub fn internal_force(e: &ElemData, s: &ElemState) -> Vec12 {
 /// and the kinematics again).
 pub(super) fn residual_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, f64) {
     let (t1, t2) = node_frames(e, s);
-    let (g, _, f, u) = shared_parts_at(e, s.u1, s.u2, &t1, &t2);
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let (_, f, u) = force_parts(e, &g);
     ((t1, t2), g, f, u)
 }
 
-/// The gradient, the energy's partials (moments, axial force) the tangent needs, the
-/// internal force and the strain energy at node displacements `u1`, `u2` and node frames
-/// `t1`, `t2`, in any lanes.
+/// From an element's gradient, in any lanes: the energy's partials (moments, axial
+/// force) the tangent needs, the internal force and the strain energy. The gradient is
+/// the caller's: returned beside these, its 8 kB in lanes were copied once more.
 #[allow(clippy::type_complexity)]
 #[inline(always)]
-pub(super) fn shared_parts_at<B: Lane>(
-    e: &ElemData<B>,
-    u1: V3<B>,
-    u2: V3<B>,
-    t1: &M3<B>,
-    t2: &M3<B>,
-) -> (Grad<B>, ([B; 6], B), [B; NDOF], B) {
-    let g = gradient(e.chord0, e.l0, u1, u2, t1, t2);
+pub(super) fn force_parts<B: Lane>(e: &ElemData<B>, g: &Grad<B>) -> (([B; 6], B), [B; NDOF], B) {
     let (m, n) = energy_partials(&e.props, e.l0, &g.kin);
-    let f = force_from(&g, &m, n);
+    let f = force_from(g, &m, n);
     let u = energy(&e.props, e.l0, &g.kin);
-    (g, (m, n), f, u)
-}
-
-/// The tangent K from [`shared_parts_at`]'s gradient and partials, in any lanes, written
-/// over `k`.
-#[inline(always)]
-pub(super) fn tangent_at<B: Lane>(
-    e: &ElemData<B>,
-    g: &Grad<B>,
-    m: &[B; 6],
-    n: B,
-    k: &mut [[B; NDOF]; NDOF],
-) {
-    tangent_into(&e.props, e.l0, g, m, n, k);
+    ((m, n), f, u)
 }
 
 /// [`internal_force_tangent`] and the strain energy (bit-identical to [`strain_energy`],
@@ -243,7 +224,8 @@ pub fn internal_force_tangent_energy(e: &ElemData, s: &ElemState) -> (Vec12, Mat
 /// (public for the element bench's split of the stage)
 pub fn tangent_parts(e: &ElemData, s: &ElemState) -> ((Mat3, Mat3), Grad<f64>, Vec12, Mat12, f64) {
     let (t1, t2) = node_frames(e, s);
-    let (g, (m, n), f, u) = shared_parts_at(e, s.u1, s.u2, &t1, &t2);
+    let g = gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let ((m, n), f, u) = force_parts(e, &g);
     let k = tangent(&e.props, e.l0, &g, &m, n);
     ((t1, t2), g, f, k, u)
 }
@@ -312,7 +294,7 @@ fn tangent<R: Real>(
 /// each entry is the same sum, in the same order, as adding whole rank-one matrices one
 /// after the other gives, without zeroing K and passing it through memory once per term.
 #[inline(always)]
-fn tangent_into<R: Real>(
+pub(super) fn tangent_into<R: Real>(
     p: &BeamProps<R::Base>,
     l0: R::Base,
     g: &Grad<R>,

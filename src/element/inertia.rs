@@ -147,8 +147,9 @@ pub struct GradRows<B = f64> {
     g: [[B; NDOF]; 36],
     gdot: [[B; NDOF]; 36],
     w: [B; 36],
-    /// whether `gdot` holds the rates (else C = 0)
-    rates: bool,
+    /// `None`: `gdot` holds no rates and C = 0; else the bit mask of the lanes whose
+    /// rates it holds ([`Lane::keep`]; the others are at rest and get C = +0)
+    rates: Option<B>,
 }
 
 impl<B: Lane> Default for GradRows<B> {
@@ -157,7 +158,7 @@ impl<B: Lane> Default for GradRows<B> {
             g: [[B::cst(0.0); NDOF]; 36],
             gdot: [[B::cst(0.0); NDOF]; 36],
             w: [B::cst(0.0); 36],
-            rates: false,
+            rates: None,
         }
     }
 }
@@ -168,13 +169,20 @@ impl<B: Lane> GradRows<B> {
     pub(super) fn fill_from(&mut self, e: &ElemData<B>, g: &Grad<B>) {
         field_rows_into(g, &mut self.g);
         self.w = row_weights(e);
-        self.rates = false;
+        self.rates = None;
     }
 
     /// Overwrite with the rows of g and ġ along `v` at the given positions: one
     /// dual-number pass of the closed-form gradients, whose value parts do exactly the
-    /// plain arithmetic, so g is bit-identical to [`GradRows::fill_from`]'s.
-    pub(super) fn fill_rates_at(&mut self, e: &ElemData<B>, pos: Positions<'_, B>, v: &[B; NDOF]) {
+    /// plain arithmetic, so g is bit-identical to [`GradRows::fill_from`]'s. `moving` is
+    /// the bit mask of the lanes that move.
+    pub(super) fn fill_rates_at(
+        &mut self,
+        e: &ElemData<B>,
+        pos: Positions<'_, B>,
+        v: &[B; NDOF],
+        moving: B,
+    ) {
         let (u1, u2, t1, t2) = pos;
         let (u1, tt1) = perturb_dual(u1, t1, &v[0..6]);
         let (u2, tt2) = perturb_dual(u2, t2, &v[6..12]);
@@ -184,7 +192,7 @@ impl<B: Lane> GradRows<B> {
         };
         field_rows_into(&gradient(e.chord0, e.l0, u1, u2, &tt1, &tt2), &mut split);
         self.w = row_weights(e);
-        self.rates = true;
+        self.rates = Some(moving);
     }
 }
 
@@ -199,7 +207,7 @@ impl GradRows<f64> {
             self.fill_from(e, &gradient(e.chord0, e.l0, s.u1, s.u2, &t1, &t2));
             return;
         }
-        self.fill_rates_at(e, (s.u1, s.u2, &t1, &t2), v);
+        self.fill_rates_at(e, (s.u1, s.u2, &t1, &t2), v, ALL_LANES);
     }
 }
 
@@ -498,7 +506,7 @@ pub fn mass_and_rates<B: Lane>(
 ) {
     mass_into(&r.g, &r.w, m);
     let z = B::cst(0.0);
-    if r.rates {
+    if let Some(mask) = r.rates {
         for (j, cj) in c.iter_mut().enumerate() {
             let mut acc_c = [z; NDOF];
             for ((row, rowd), wr) in r.g.iter().zip(&r.gdot).zip(&r.w) {
@@ -520,6 +528,9 @@ pub fn mass_and_rates<B: Lane>(
                     cj[o + k] = cj[o + k] + t;
                 }
             }
+        }
+        for x in c.iter_mut().flatten() {
+            *x = x.keep(mask);
         }
     } else {
         *c = [[z; NDOF]; NDOF];

@@ -219,6 +219,16 @@ impl CpuEval {
         }
     }
 
+    /// A residual whose f, energy, s and mv are those of these positions and velocities
+    /// already (`o.forces_of` is `i`'s key): only M·acc is formed.
+    #[inline]
+    fn mass_product(e: &ElemData, i: &ElemIn, o: &mut ElemOut) {
+        let (t1, t2) = kinematics::node_frames(e, &i.state);
+        let g = force::gradient(e.chord0, e.l0, i.state.u1, i.state.u2, &t1, &t2);
+        let ma = inertia::mass_times(e, &g, &i.acc);
+        o.finert = std::array::from_fn(|k| ma[k] + o.s[k]);
+    }
+
     /// One element without the matrices: the closed-form force (no tangent) and the
     /// inertial forces from the f64 field gradients (M never formed); K, M and C are left
     /// as they were.
@@ -226,11 +236,7 @@ impl CpuEval {
     pub fn one_residual(e: &ElemData, i: &ElemIn, inertia: bool, o: &mut ElemOut) {
         let key = if inertia { Some(memo_key(i)) } else { None };
         if key.is_some() && o.forces_of == key {
-            // f, energy, s and mv are those of these positions and velocities already
-            let (t1, t2) = kinematics::node_frames(e, &i.state);
-            let g = force::gradient(e.chord0, e.l0, i.state.u1, i.state.u2, &t1, &t2);
-            let ma = inertia::mass_times(e, &g, &i.acc);
-            o.finert = std::array::from_fn(|k| ma[k] + o.s[k]);
+            Self::mass_product(e, i, o);
             return;
         }
         // one gradient for the force, the energy and the inertial forces
@@ -325,32 +331,11 @@ impl Packed {
         }
     }
 
-    /// The lanes' gradient. `force::shared_parts_at` computes the same pieces, but
-    /// returned together with them the gradient (8 kB in lanes) was copied once more.
+    /// The lanes' gradient.
     #[inline(always)]
     fn gradient(&self) -> force::Grad<F4> {
-        force::gradient(
-            self.e.chord0,
-            self.e.l0,
-            self.u1,
-            self.u2,
-            &self.t1,
-            &self.t2,
-        )
-    }
-
-    /// The energy's partials (moments, axial force), the internal force and the strain
-    /// energy from the lanes' gradient, as `force::shared_parts_at` forms them.
-    #[inline(always)]
-    fn force(&self, g: &force::Grad<F4>) -> ([F4; 6], F4, [F4; NDOF], F4) {
-        let (m, n) = force::energy_partials(&self.e.props, self.e.l0, &g.kin);
-        let f = force::force_from(g, &m, n);
-        (
-            m,
-            n,
-            f,
-            kinematics::energy(&self.e.props, self.e.l0, &g.kin),
-        )
+        let e = &self.e;
+        force::gradient(e.chord0, e.l0, self.u1, self.u2, &self.t1, &self.t2)
     }
 
     /// `None` when no lane moves, else the bit mask of the moving lanes.
@@ -405,8 +390,8 @@ fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
     let p = Packed::new(items);
     let pos = (p.u1, p.u2, &p.t1, &p.t2);
     let g = p.gradient();
-    let (m, n, f, u) = p.force(&g);
-    force::tangent_at(&p.e, &g, &m, n, &mut sc.k);
+    let ((m, n), f, u) = force::force_parts(&p.e, &g);
+    force::tangent_into(&p.e.props, p.e.l0, &g, &m, n, &mut sc.k);
     put(&f, items, |o| &mut o.f);
     put_mat(&sc.k, items, |o| &mut o.k);
     for (l, (_, i, o)) in items.iter_mut().enumerate() {
@@ -421,21 +406,14 @@ fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
         return;
     }
     let mask = p.moving_mask();
-    if mask.is_some() {
-        sc.rows.fill_rates_at(&p.e, pos, &p.v);
-    } else {
-        sc.rows.fill_from(&p.e, &g);
+    match mask {
+        Some(mask) => sc.rows.fill_rates_at(&p.e, pos, &p.v, mask),
+        None => sc.rows.fill_from(&p.e, &g),
     }
     inertia::mass_and_rates(&sc.rows, &p.v, &mut sc.m, &mut sc.c);
     let (finert, mv, sv) = inertia::inertia_forces_at(&p.e, &g, pos, &p.v, &p.acc, mask);
     put_mat(&sc.m, items, |o| &mut o.m);
     put_mat(&sc.c, items, |o| &mut o.c);
-    for (l, (_, _, o)) in items.iter_mut().enumerate() {
-        if !p.moving[l] {
-            // as the scalar code writes it (the lanes give +0 too; this does not rely on it)
-            o.c = [[0.0; NDOF]; NDOF];
-        }
-    }
     put(&sv, items, |o| &mut o.s);
     put(&finert, items, |o| &mut o.finert);
     put(&mv, items, |o| &mut o.mv);
@@ -456,7 +434,7 @@ struct LaneScratch {
 fn residual_lanes(items: &mut [Item<'_>], inertia: bool) {
     let p = Packed::new(items);
     let g = p.gradient();
-    let (_, _, f, u) = p.force(&g);
+    let (_, f, u) = force::force_parts(&p.e, &g);
     let forces = inertia.then(|| {
         let pos = (p.u1, p.u2, &p.t1, &p.t2);
         inertia::inertia_forces_at(&p.e, &g, pos, &p.v, &p.acc, p.moving_mask())
@@ -480,14 +458,13 @@ fn residual_lanes(items: &mut [Item<'_>], inertia: bool) {
 
 /// Evaluate one group of elements four at a time: a full evaluation, or a residual-only
 /// one (whose memoised elements form only M·acc, one by one, and leave the lanes).
-fn lanes_over(items: Vec<Item<'_>>, residual: bool, inertia: bool) {
-    let mut items = items;
+fn lanes_over(mut items: Vec<Item<'_>>, residual: bool, inertia: bool) {
     if residual {
         // the memoised ones: f, energy, s and mv are those of these positions already
         items.retain_mut(|(e, i, o)| {
             let memo = inertia && o.forces_of == Some(memo_key(i));
             if memo {
-                CpuEval::one_residual(e, i, inertia, o);
+                CpuEval::mass_product(e, i, o);
             }
             !memo
         });
