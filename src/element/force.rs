@@ -46,26 +46,71 @@ pub fn gradient<R: Real>(
     t1: &M3<R>,
     t2: &M3<R>,
 ) -> Grad<R> {
-    let kin = kinematics(chord0, l0, u1, u2, t1, t2);
+    let mut g = Grad::zero();
+    gradient_into(chord0, l0, u1, u2, t1, t2, &mut g);
+    g
+}
+
+impl<R: Real> Grad<R> {
+    /// Every entry +0: a gradient to overwrite with [`gradient_into`].
+    pub fn zero() -> Self {
+        let z = R::cst(0.0);
+        Grad {
+            kin: Kin {
+                tc: [[z; 3]; 3],
+                phi: [z; 6],
+                u1: z,
+                len: z,
+            },
+            dtheta: [[z; NDOF]; 3],
+            dphi: [[z; NDOF]; 6],
+            dlen: [z; NDOF],
+            spin: [[z; NDOF]; 3],
+            ab: z,
+            rel: [[[z; 3]; 3]; 2],
+            psi: [[[z; NDOF]; 3]; 2],
+        }
+    }
+}
+
+/// [`gradient`] written over `g` (every entry): a stage keeps one per call and overwrites
+/// it group by group, so its kilobytes (eight in four lanes, sixteen in their dual
+/// numbers) are neither zeroed nor copied on the hot path.
+#[inline(always)]
+pub fn gradient_into<R: Real>(
+    chord0: V3<R::Base>,
+    l0: R::Base,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+    g: &mut Grad<R>,
+) {
+    g.kin = kinematics(chord0, l0, u1, u2, t1, t2);
+    let tcm = g.kin.tc;
     let z = R::cst(0.0);
-    let e = mcol(&kin.tc, 0);
-    let tc2 = mcol(&kin.tc, 1);
-    let tc3 = mcol(&kin.tc, 2);
+    let e = mcol(&tcm, 0);
+    let tc2 = mcol(&tcm, 1);
+    let tc3 = mcol(&tcm, 2);
     let n = mcol(t1, 1);
     let ab = vdot(n, e) / vdot(n, tc2);
-    let il = R::cst(1.0) / kin.len;
-    let mut dlen = [z; NDOF];
+    let il = R::cst(1.0) / g.kin.len;
     // convected components of the frame spin, as rows over the 12 dofs
-    let mut thx = [z; NDOF];
-    let mut thy = [z; NDOF];
-    let mut thz = [z; NDOF];
+    let [thx, thy, thz] = &mut g.spin;
+    let dlen = &mut g.dlen;
     for k in 0..3 {
         dlen[k] = -e[k];
+        dlen[3 + k] = z;
         dlen[6 + k] = e[k];
+        dlen[9 + k] = z;
         thz[k] = -tc2[k] * il;
+        thz[3 + k] = z;
         thz[6 + k] = tc2[k] * il;
+        thz[9 + k] = z;
         thy[k] = tc3[k] * il;
+        thy[3 + k] = z;
         thy[6 + k] = -tc3[k] * il;
+        thy[9 + k] = z;
     }
     for j in 0..NDOF {
         thx[j] = ab * thy[j];
@@ -73,31 +118,28 @@ pub fn gradient<R: Real>(
     for k in 0..3 {
         thx[3 + k] = thx[3 + k] + e[k] - ab * tc2[k];
     }
-    let mut dtheta = [[z; NDOF]; 3];
+    let dtheta = &mut g.dtheta;
     for r in 0..3 {
         for j in 0..NDOF {
             dtheta[r][j] = e[r] * thx[j] + tc2[r] * thy[j] + tc3[r] * thz[j];
         }
     }
-    let mut dphi = [[z; NDOF]; 6];
-    let mut rel = [[[z; 3]; 3]; 2];
-    let mut psis = [[[z; NDOF]; 3]; 2];
     for (i, t) in [t1, t2].iter().enumerate() {
         // D = T_Cᵀ T_i and G = ½(tr D I − D)
         let mut d = [[z; 3]; 3];
         for r in 0..3 {
             for c in 0..3 {
-                d[r][c] = vdot(mcol(&kin.tc, r), mcol(t, c));
+                d[r][c] = vdot(mcol(&tcm, r), mcol(t, c));
             }
         }
         let half = R::cst(0.5);
         let tr = d[0][0] + d[1][1] + d[2][2];
-        let mut g = [[z; 3]; 3];
+        let mut gm = [[z; 3]; 3];
         for r in 0..3 {
             for c in 0..3 {
-                g[r][c] = -(half * d[r][c]);
+                gm[r][c] = -(half * d[r][c]);
             }
-            g[r][r] = g[r][r] + half * tr;
+            gm[r][r] = gm[r][r] + half * tr;
         }
         // ψ = T_Cᵀ(δπ_i − δθ_C), per dof column j
         for j in 0..NDOF {
@@ -107,22 +149,14 @@ pub fn gradient<R: Real>(
             }
             let psi = [vdot(e, w), vdot(tc2, w), vdot(tc3, w)];
             for r in 0..3 {
-                dphi[3 * i + r][j] = g[r][0] * psi[0] + g[r][1] * psi[1] + g[r][2] * psi[2];
-                psis[i][r][j] = psi[r];
+                g.dphi[3 * i + r][j] =
+                    gm[r][0] * psi[0] + gm[r][1] * psi[1] + gm[r][2] * psi[2];
+                g.psi[i][r][j] = psi[r];
             }
         }
-        rel[i] = d;
+        g.rel[i] = d;
     }
-    Grad {
-        kin,
-        dtheta,
-        dphi,
-        dlen,
-        spin: [thx, thy, thz],
-        ab,
-        rel,
-        psi: psis,
-    }
+    g.ab = ab;
 }
 
 /// ∂U/∂φ and ∂U/∂ℓ (= the axial force N) of the Bernoulli energy (see [`energy`]).

@@ -150,6 +150,8 @@ pub struct GradRows<B = f64> {
     /// `None`: `gdot` holds no rates and C = 0; else the bit mask of the lanes whose
     /// rates it holds ([`Lane::keep`]; the others are at rest and get C = +0)
     rates: Option<B>,
+    /// the dual-number gradient the rows of g and ġ are read from (workspace)
+    dual: Grad<Dual<B>>,
 }
 
 impl<B: Lane> Default for GradRows<B> {
@@ -159,6 +161,7 @@ impl<B: Lane> Default for GradRows<B> {
             gdot: [[B::cst(0.0); NDOF]; 36],
             w: [B::cst(0.0); 36],
             rates: None,
+            dual: Grad::zero(),
         }
     }
 }
@@ -186,11 +189,12 @@ impl<B: Lane> GradRows<B> {
         let (u1, u2, t1, t2) = pos;
         let (u1, tt1) = perturb_dual(u1, t1, &v[0..6]);
         let (u2, tt2) = perturb_dual(u2, t2, &v[6..12]);
+        gradient_into(e.chord0, e.l0, u1, u2, &tt1, &tt2, &mut self.dual);
         let mut split = SplitRows {
             g: &mut self.g,
             gdot: &mut self.gdot,
         };
-        field_rows_into(&gradient(e.chord0, e.l0, u1, u2, &tt1, &tt2), &mut split);
+        field_rows_into(&self.dual, &mut split);
         self.w = row_weights(e);
         self.rates = Some(moving);
     }

@@ -331,11 +331,11 @@ impl Packed {
         }
     }
 
-    /// The lanes' gradient.
+    /// The lanes' gradient, written over `g`.
     #[inline(always)]
-    fn gradient(&self) -> force::Grad<F4> {
+    fn gradient_into(&self, g: &mut force::Grad<F4>) {
         let e = &self.e;
-        force::gradient(e.chord0, e.l0, self.u1, self.u2, &self.t1, &self.t2)
+        force::gradient_into(e.chord0, e.l0, self.u1, self.u2, &self.t1, &self.t2, g);
     }
 
     /// `None` when no lane moves, else the bit mask of the moving lanes.
@@ -389,9 +389,10 @@ fn put_mat(
 fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
     let p = Packed::new(items);
     let pos = (p.u1, p.u2, &p.t1, &p.t2);
-    let g = p.gradient();
-    let ((m, n), f, u) = force::force_parts(&p.e, &g);
-    force::tangent_into(&p.e.props, p.e.l0, &g, &m, n, &mut sc.k);
+    p.gradient_into(&mut sc.grad);
+    let g = &sc.grad;
+    let ((m, n), f, u) = force::force_parts(&p.e, g);
+    force::tangent_into(&p.e.props, p.e.l0, g, &m, n, &mut sc.k);
     put(&f, items, |o| &mut o.f);
     put_mat(&sc.k, items, |o| &mut o.k);
     for (l, (_, i, o)) in items.iter_mut().enumerate() {
@@ -408,10 +409,10 @@ fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
     let mask = p.moving_mask();
     match mask {
         Some(mask) => sc.rows.fill_rates_at(&p.e, pos, &p.v, mask),
-        None => sc.rows.fill_from(&p.e, &g),
+        None => sc.rows.fill_from(&p.e, g),
     }
     inertia::mass_and_rates(&sc.rows, &p.v, &mut sc.m, &mut sc.c);
-    let (finert, mv, sv) = inertia::inertia_forces_at(&p.e, &g, pos, &p.v, &p.acc, mask);
+    let (finert, mv, sv) = inertia::inertia_forces_at(&p.e, g, pos, &p.v, &p.acc, mask);
     put_mat(&sc.m, items, |o| &mut o.m);
     put_mat(&sc.c, items, |o| &mut o.c);
     put(&sv, items, |o| &mut o.s);
@@ -419,25 +420,39 @@ fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
     put(&mv, items, |o| &mut o.mv);
 }
 
-/// The full evaluation's workspace: the gradient rows and M and C in lanes, every entry
-/// written before it is read (kept across the groups of a call, so zeroed once a call).
-#[derive(Default)]
+/// The full evaluation's workspace: the gradient, K, the gradient rows and M and C in
+/// lanes, every entry written before it is read (kept across the groups of a call, so
+/// zeroed once a call).
 struct LaneScratch {
+    grad: force::Grad<F4>,
     k: [[F4; NDOF]; NDOF],
     rows: inertia::GradRows<F4>,
     m: [[F4; NDOF]; NDOF],
     c: [[F4; NDOF]; NDOF],
 }
 
+impl Default for LaneScratch {
+    fn default() -> Self {
+        let z = [[F4::ZERO; NDOF]; NDOF];
+        LaneScratch {
+            grad: force::Grad::zero(),
+            k: z,
+            rows: Default::default(),
+            m: z,
+            c: z,
+        }
+    }
+}
+
 /// The residual-only evaluation ([`CpuEval::one_residual`]) of up to four elements whose
 /// forces are not memoised.
-fn residual_lanes(items: &mut [Item<'_>], inertia: bool) {
+fn residual_lanes(items: &mut [Item<'_>], inertia: bool, g: &mut force::Grad<F4>) {
     let p = Packed::new(items);
-    let g = p.gradient();
-    let (_, f, u) = force::force_parts(&p.e, &g);
+    p.gradient_into(g);
+    let (_, f, u) = force::force_parts(&p.e, g);
     let forces = inertia.then(|| {
         let pos = (p.u1, p.u2, &p.t1, &p.t2);
-        inertia::inertia_forces_at(&p.e, &g, pos, &p.v, &p.acc, p.moving_mask())
+        inertia::inertia_forces_at(&p.e, g, pos, &p.v, &p.acc, p.moving_mask())
     });
     put(&f, items, |o| &mut o.f);
     if let Some((finert, mv, sv)) = &forces {
@@ -468,8 +483,9 @@ fn lanes_over(mut items: Vec<Item<'_>>, residual: bool, inertia: bool) {
             }
             !memo
         });
+        let mut g = force::Grad::zero();
         for chunk in items.chunks_mut(LANES) {
-            residual_lanes(chunk, inertia);
+            residual_lanes(chunk, inertia, &mut g);
         }
     } else {
         let mut sc = LaneScratch::default();
