@@ -272,6 +272,30 @@ fn lanes(f: impl Fn(usize) -> f64) -> F4 {
     F4::new([f(0), f(1), f(2), f(3)])
 }
 
+/// Lane k of entry j is `row(k)[j]`: four entries at a time, the 4 × 4 block transposed
+/// in registers (as [`put`] writes them back), the rest one by one.
+#[inline(always)]
+fn gather<'x, const N: usize>(row: impl Fn(usize) -> &'x [f64]) -> [F4; N] {
+    let rows = [row(0), row(1), row(2), row(3)];
+    let mut x = [F4::ZERO; N];
+    let blocks = N / LANES;
+    for b in 0..blocks {
+        let r = LANES * b;
+        let t = F4::transpose(rows.map(|w| F4::from(<[f64; 4]>::try_from(&w[r..r + 4]).unwrap())));
+        x[r..r + LANES].copy_from_slice(&t);
+    }
+    for (j, xj) in x.iter_mut().enumerate().skip(LANES * blocks) {
+        *xj = lanes(|k| rows[k][j]);
+    }
+    x
+}
+
+/// A 3 × 3 matrix from its rows' nine entries.
+#[inline(always)]
+fn m3(x: [F4; 9]) -> M3<F4> {
+    [[x[0], x[1], x[2]], [x[3], x[4], x[5]], [x[6], x[7], x[8]]]
+}
+
 /// The inputs of up to four elements in lanes: constants, node displacements and
 /// frames, velocities and accelerations.
 struct Packed {
@@ -294,10 +318,7 @@ impl Packed {
         let v3 = |f: &dyn Fn(usize) -> crate::math::Vec3| -> V3<F4> {
             std::array::from_fn(|c| lanes(|k| f(k)[c]))
         };
-        let m3 = |f: &dyn Fn(usize) -> crate::math::Mat3| -> M3<F4> {
-            std::array::from_fn(|r| std::array::from_fn(|c| lanes(|k| f(k)[r][c])))
-        };
-        let frame0 = m3(&|k| at(k).0.frame0);
+        let frame0 = m3(gather(|k| at(k).0.frame0.as_flattened()));
         // the node frames R_i · frame0 in lanes, as `crate::math::mat_mul` forms them
         let frame = |r: M3<F4>| -> M3<F4> {
             std::array::from_fn(|i| {
@@ -307,8 +328,8 @@ impl Packed {
             })
         };
         Packed {
-            t1: frame(m3(&|k| at(k).1.state.r1)),
-            t2: frame(m3(&|k| at(k).1.state.r2)),
+            t1: frame(m3(gather(|k| at(k).1.state.r1.as_flattened()))),
+            t2: frame(m3(gather(|k| at(k).1.state.r2.as_flattened()))),
             e: ElemData {
                 props: BeamProps {
                     ea: p(|q| q.ea),
@@ -325,8 +346,8 @@ impl Packed {
             },
             u1: v3(&|k| at(k).1.state.u1),
             u2: v3(&|k| at(k).1.state.u2),
-            v: std::array::from_fn(|j| lanes(|k| at(k).1.v12[j])),
-            acc: std::array::from_fn(|j| lanes(|k| at(k).1.acc[j])),
+            v: gather(|k| &at(k).1.v12),
+            acc: gather(|k| &at(k).1.acc),
             moving: std::array::from_fn(|k| at(k).1.v12.iter().any(|x| *x != 0.0)),
         }
     }
