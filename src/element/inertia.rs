@@ -643,43 +643,39 @@ pub(super) fn field_rows_into<R: Real, S: RowSink<R>>(g: &Grad<R>, out: &mut S) 
         let ra = mvec(tc, [z, uy, uz]);
         let rb = mvec(tc, [-thz, R::cst(1.0), thx]);
         let rc = mvec(tc, [thy, -thx, R::cst(1.0)]);
-        // the derivatives of the bending and twist fields, dof by dof (loops over the 12
-        // dofs with scalar coefficients: they vectorise)
-        let (mut duy, mut duz) = ([z; NDOF], [z; NDOF]);
-        let (mut dthx, mut dthy, mut dthz) = ([z; NDOF], [z; NDOF], [z; NDOF]);
-        let dp = &g.dphi;
-        for j in 0..NDOF {
-            duy[j] = g.dlen[j] * wz + len * (n1 * dp[2][j] + n2 * dp[5][j]);
-            duz[j] = -(g.dlen[j] * wy + len * (n1 * dp[1][j] + n2 * dp[4][j]));
-            dthx[j] = c0 * dp[0][j] + c1 * dp[3][j];
-            dthy[j] = d1 * dp[1][j] + d2 * dp[4][j];
-            dthz[j] = d1 * dp[2][j] + d2 * dp[5][j];
-        }
+        // per dof j: the derivatives of the bending and twist fields, then
         // δa = δθ_C × ra + T_C [0, δu_y, δu_z] (+ the chord share below),
         // δb = δθ_C × rb + T_C [−δθz, 0, δθx], δc = δθ_C × rc + T_C [δθy, −δθx, 0]
+        // (dof by dof, so nothing is staged in memory between the two)
+        let dp = &g.dphi;
         let dth = &g.dtheta;
-        for c in 0..3 {
-            let (p, q) = ((c + 1) % 3, (c + 2) % 3);
-            let t = tc[c];
-            let base = 9 * gp + c;
-            for j in 0..NDOF {
+        for j in 0..NDOF {
+            let duy = g.dlen[j] * wz + len * (n1 * dp[2][j] + n2 * dp[5][j]);
+            let duz = -(g.dlen[j] * wy + len * (n1 * dp[1][j] + n2 * dp[4][j]));
+            let dthx = c0 * dp[0][j] + c1 * dp[3][j];
+            let dthy = d1 * dp[1][j] + d2 * dp[4][j];
+            let dthz = d1 * dp[2][j] + d2 * dp[5][j];
+            for c in 0..3 {
+                let (p, q) = ((c + 1) % 3, (c + 2) % 3);
+                let t = tc[c];
+                let base = 9 * gp + c;
                 out.set(
                     base,
                     j,
                     (dth[p][j] * ra[q] - dth[q][j] * ra[p])
-                        + (t[0] * z + t[1] * duy[j] + t[2] * duz[j]),
+                        + (t[0] * z + t[1] * duy + t[2] * duz),
                 );
                 out.set(
                     base + 3,
                     j,
                     (dth[p][j] * rb[q] - dth[q][j] * rb[p])
-                        + (t[0] * (-dthz[j]) + t[1] * z + t[2] * dthx[j]),
+                        + (t[0] * (-dthz) + t[1] * z + t[2] * dthx),
                 );
                 out.set(
                     base + 6,
                     j,
                     (dth[p][j] * rc[q] - dth[q][j] * rc[p])
-                        + (t[0] * dthy[j] + t[1] * (-dthx[j]) + t[2] * z),
+                        + (t[0] * dthy + t[1] * (-dthx) + t[2] * z),
                 );
             }
         }
