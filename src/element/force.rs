@@ -149,8 +149,7 @@ pub fn gradient_into<R: Real>(
             }
             let psi = [vdot(e, w), vdot(tc2, w), vdot(tc3, w)];
             for r in 0..3 {
-                g.dphi[3 * i + r][j] =
-                    gm[r][0] * psi[0] + gm[r][1] * psi[1] + gm[r][2] * psi[2];
+                g.dphi[3 * i + r][j] = gm[r][0] * psi[0] + gm[r][1] * psi[1] + gm[r][2] * psi[2];
                 g.psi[i][r][j] = psi[r];
             }
         }

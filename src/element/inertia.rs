@@ -10,7 +10,7 @@
 
 //!
 //! The production route of [`super::CpuEval`]: M and C from the 36 gradient rows
-//! ([`GradRows`]), S from one second-order jet pass ([`field_jets`]), the inertial forces
+//! ([`GradRows`]), S from one second-order jet pass ([`field_second`]), the inertial forces
 //! M·a + S and M·v from the factored gradients ([`FieldMaps`], no rows). Its WGSL twin is
 //! `shaders/beam_inertia.wgsl` (S there still by the hyper-dual pass, the same numbers).
 
@@ -61,7 +61,9 @@ pub(super) fn field_derivs(
 
 /// The position fields at the Gauss points as second-order jets along `v`: their `.dd`
 /// parts are H(v, v), bit-identical to the `.ab` parts of [`field_derivs`] along (v, v)
-/// (the same products in the same order, each once instead of twice).
+/// (the same products in the same order, each once instead of twice). Production takes
+/// only the `.dd` parts, from [`field_second`]; the whole jets are for the tests.
+#[cfg(test)]
 pub(super) fn field_jets<B: Lane>(
     e: &ElemData<B>,
     (u1, u2, t1, t2): Positions<'_, B>,
@@ -70,6 +72,22 @@ pub(super) fn field_jets<B: Lane>(
     let (u1, tt1) = perturb_jet(u1, t1, &v[0..6]);
     let (u2, tt2) = perturb_jet(u2, t2, &v[6..12]);
     gauss_fields(e, u1, u2, &tt1, &tt2)
+}
+
+/// The second-order parts H(v, v) of the position fields' jets along `v`, as
+/// [`gauss_fields`] forms them, each Gauss point's jets reduced to their `.dd` parts as
+/// they are formed (so the 3.4 kB of jets in lanes are never staged or copied).
+#[inline(always)]
+pub(super) fn field_second<B: Lane>(
+    e: &ElemData<B>,
+    (u1, u2, t1, t2): Positions<'_, B>,
+    v: &[B; NDOF],
+) -> [[V3<B>; 3]; 4] {
+    let (u1, tt1) = perturb_jet(u1, t1, &v[0..6]);
+    let (u2, tt2) = perturb_jet(u2, t2, &v[6..12]);
+    let kin = kinematics(e.chord0, e.l0, u1, u2, &tt1, &tt2);
+    let chord = vadd(e.chord0.map(Jet2::lift), vsub(u2, u1));
+    std::array::from_fn(|g| section_fields(&kin, u1, chord, GAUSS4[g].0).map(|f| f.map(|x| x.dd)))
 }
 
 /// An element's node displacements and node frames (u1, u2, T1, T2), in any lanes.
@@ -376,7 +394,7 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
 }
 
 /// The inertial forces from the factored gradients: M x = gᵀ(w ⊙ g x) for x = acc and v,
-/// S = gᵀ(w ⊙ H(v, v)) with H from one second-order jet pass ([`field_jets`]), the
+/// S = gᵀ(w ⊙ H(v, v)) with H from one second-order jet pass ([`field_second`]), the
 /// node frames `frames` those of the gradient. The full and the residual-only evaluation
 /// both call this with the same f64 gradient, so their forces are bit-identical.
 /// (public for the element bench's split of the stage)
@@ -416,10 +434,7 @@ pub(super) fn inertia_forces_at<B: Lane>(
     let weigh = |y| weigh_fields(&w, y);
     let ma = maps.project(&weigh(maps.apply(acc)));
     let (mv, sv) = if let Some(mask) = moving {
-        let h = field_jets(e, pos, v);
-        let hv: [[V3<B>; 3]; 4] = std::array::from_fn(|gp| {
-            std::array::from_fn(|f| std::array::from_fn(|c| h[gp][f][c].dd))
-        });
+        let hv = field_second(e, pos, v);
         (
             maps.project(&weigh(maps.apply(v))).map(|x| x.keep(mask)),
             maps.project(&weigh(hv)).map(|x| x.keep(mask)),
@@ -662,8 +677,7 @@ pub(super) fn field_rows_into<R: Real, S: RowSink<R>>(g: &Grad<R>, out: &mut S) 
                 out.set(
                     base,
                     j,
-                    (dth[p][j] * ra[q] - dth[q][j] * ra[p])
-                        + (t[0] * z + t[1] * duy + t[2] * duz),
+                    (dth[p][j] * ra[q] - dth[q][j] * ra[p]) + (t[0] * z + t[1] * duy + t[2] * duz),
                 );
                 out.set(
                     base + 3,
