@@ -303,8 +303,9 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
         FieldMaps { g, r, w }
     }
 
-    /// g_q · x for every (Gauss point, field) q.
-    fn apply(&self, x: &[B; NDOF]) -> [[V3<B>; 3]; 4] {
+    /// w_q (g_q · x) for every (Gauss point, field) q, with w the μ-weights of
+    /// [`gauss_field_weights`] (each component weighed as it is formed).
+    fn apply(&self, x: &[B; NDOF], w: &[[B; 3]; 4]) -> [[V3<B>; 3]; 4] {
         let g = self.g;
         let th = [
             dot12(&g.dtheta[0], x),
@@ -330,10 +331,11 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
             let lb = mvec(tc, [-dthz, z, dthx]);
             let lc = mvec(tc, [dthy, -dthx, z]);
             let (ca, cb, cc) = (vcross(th, *ra), vcross(th, *rb), vcross(th, *rc));
+            let [wa, wb, wc] = w[gp];
             [
-                std::array::from_fn(|i| ca[i] + la[i] + (c0 * x1[i] + c1 * x2[i])),
-                std::array::from_fn(|i| cb[i] + lb[i]),
-                std::array::from_fn(|i| cc[i] + lc[i]),
+                std::array::from_fn(|i| (ca[i] + la[i] + (c0 * x1[i] + c1 * x2[i])) * wa),
+                std::array::from_fn(|i| (cb[i] + lb[i]) * wb),
+                std::array::from_fn(|i| (cc[i] + lc[i]) * wc),
             ]
         })
     }
@@ -431,13 +433,13 @@ pub(super) fn inertia_forces_at<B: Lane>(
 ) -> ([B; NDOF], [B; NDOF], [B; NDOF]) {
     let maps = FieldMaps::new(g);
     let w = gauss_field_weights(e);
-    let weigh = |y| weigh_fields(&w, y);
-    let ma = maps.project(&weigh(maps.apply(acc)));
+    let ma = maps.project(&maps.apply(acc, &w));
     let (mv, sv) = if let Some(mask) = moving {
-        let hv = field_second(e, pos, v);
+        let mut hv = field_second(e, pos, v);
+        weigh_fields(&w, &mut hv);
         (
-            maps.project(&weigh(maps.apply(v))).map(|x| x.keep(mask)),
-            maps.project(&weigh(hv)).map(|x| x.keep(mask)),
+            maps.project(&maps.apply(v, &w)).map(|x| x.keep(mask)),
+            maps.project(&hv).map(|x| x.keep(mask)),
         )
     } else {
         ([B::cst(0.0); NDOF], [B::cst(0.0); NDOF])
@@ -452,14 +454,14 @@ fn gauss_field_weights<B: Lane>(e: &ElemData<B>) -> [[B; 3]; 4] {
     std::array::from_fn(|gp| std::array::from_fn(|f| B::cst(GAUSS4[gp].1) * wf[f] * e.l0))
 }
 
+/// `y` weighed in place by the μ-weights of [`gauss_field_weights`].
 #[inline]
-fn weigh_fields<B: Lane>(w: &[[B; 3]; 4], mut y: [[V3<B>; 3]; 4]) -> [[V3<B>; 3]; 4] {
+fn weigh_fields<B: Lane>(w: &[[B; 3]; 4], y: &mut [[V3<B>; 3]; 4]) {
     for (yg, wg) in y.iter_mut().zip(w) {
         for (yf, wf) in yg.iter_mut().zip(wg) {
             yf.iter_mut().for_each(|x| *x = *x * *wf);
         }
     }
-    y
 }
 
 /// M·x from the factored gradients, as [`inertia_forces`] forms M·acc (the same
@@ -467,7 +469,7 @@ fn weigh_fields<B: Lane>(w: &[[B; 3]; 4], mut y: [[V3<B>; 3]; 4]) -> [[V3<B>; 3]
 pub(super) fn mass_times<B: Lane>(e: &ElemData<B>, g: &Grad<B>, x: &[B; NDOF]) -> [B; NDOF] {
     let maps = FieldMaps::new(g);
     let w = gauss_field_weights(e);
-    maps.project(&weigh_fields(&w, maps.apply(x)))
+    maps.project(&maps.apply(x, &w))
 }
 
 /// What the residual needs of an element's inertia: the inertial force M·acc + S and
