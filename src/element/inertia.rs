@@ -284,8 +284,12 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
         let k = &g.kin;
         let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
         let z = B::cst(0.0);
-        let mut r = [[[z; 3]; 3]; 4];
-        let mut w = [[z; 2]; 4];
+        // filled in place: the maps are what is returned, so nothing is staged and moved
+        let mut maps = FieldMaps {
+            g,
+            r: [[[z; 3]; 3]; 4],
+            w: [[z; 2]; 4],
+        };
         for (gp, sh) in GAUSS_SHAPES.iter().enumerate() {
             let [n1, n2, d1, d2, c0, c1] = sh.map(B::cst);
             let wz = n1 * fz1 + n2 * fz2;
@@ -293,19 +297,20 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
             let thx = c0 * fx1 + c1 * fx2;
             let thy = d1 * fy1 + d2 * fy2;
             let thz = d1 * fz1 + d2 * fz2;
-            r[gp] = [
+            maps.r[gp] = [
                 mvec(&k.tc, [z, k.len * wz, -(k.len * wy)]),
                 mvec(&k.tc, [-thz, B::cst(1.0), thx]),
                 mvec(&k.tc, [thy, -thx, B::cst(1.0)]),
             ];
-            w[gp] = [wz, wy];
+            maps.w[gp] = [wz, wy];
         }
-        FieldMaps { g, r, w }
+        maps
     }
 
     /// w_q (g_q · x) for every (Gauss point, field) q, with w the μ-weights of
-    /// [`gauss_field_weights`] (each component weighed as it is formed).
-    fn apply(&self, x: &[B; NDOF], w: &[[B; 3]; 4]) -> [[V3<B>; 3]; 4] {
+    /// [`gauss_field_weights`] (each component weighed as it is formed), written over
+    /// `out` (a caller's buffer: returned, it was staged and copied).
+    fn apply(&self, x: &[B; NDOF], w: &[[B; 3]; 4], out: &mut [[V3<B>; 3]; 4]) {
         let g = self.g;
         let th = [
             dot12(&g.dtheta[0], x),
@@ -318,7 +323,7 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
         let tc = &g.kin.tc;
         let len = g.kin.len;
         let z = B::cst(0.0);
-        std::array::from_fn(|gp| {
+        for (gp, og) in out.iter_mut().enumerate() {
             let [n1, n2, d1, d2, c0, c1] = GAUSS_SHAPES[gp].map(B::cst);
             let [wz, wy] = self.w[gp];
             let duy = l * wz + len * (n1 * ph[2] + n2 * ph[5]);
@@ -332,12 +337,12 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
             let lc = mvec(tc, [dthy, -dthx, z]);
             let (ca, cb, cc) = (vcross(th, *ra), vcross(th, *rb), vcross(th, *rc));
             let [wa, wb, wc] = w[gp];
-            [
-                std::array::from_fn(|i| (ca[i] + la[i] + (c0 * x1[i] + c1 * x2[i])) * wa),
-                std::array::from_fn(|i| (cb[i] + lb[i]) * wb),
-                std::array::from_fn(|i| (cc[i] + lc[i]) * wc),
-            ]
-        })
+            for i in 0..3 {
+                og[0][i] = (ca[i] + la[i] + (c0 * x1[i] + c1 * x2[i])) * wa;
+                og[1][i] = (cb[i] + lb[i]) * wb;
+                og[2][i] = (cc[i] + lc[i]) * wc;
+            }
+        }
     }
 
     /// Σ_q g_qj · y_q for every dof j.
@@ -433,14 +438,16 @@ pub(super) fn inertia_forces_at<B: Lane>(
 ) -> ([B; NDOF], [B; NDOF], [B; NDOF]) {
     let maps = FieldMaps::new(g);
     let w = gauss_field_weights(e);
-    let ma = maps.project(&maps.apply(acc, &w));
+    let z = B::cst(0.0);
+    let mut y = [[[z; 3]; 3]; 4];
+    maps.apply(acc, &w, &mut y);
+    let ma = maps.project(&y);
     let (mv, sv) = if let Some(mask) = moving {
+        maps.apply(v, &w, &mut y);
+        let mv = maps.project(&y).map(|x| x.keep(mask));
         let mut hv = field_second(e, pos, v);
         weigh_fields(&w, &mut hv);
-        (
-            maps.project(&maps.apply(v, &w)).map(|x| x.keep(mask)),
-            maps.project(&hv).map(|x| x.keep(mask)),
-        )
+        (mv, maps.project(&hv).map(|x| x.keep(mask)))
     } else {
         ([B::cst(0.0); NDOF], [B::cst(0.0); NDOF])
     };
@@ -469,7 +476,9 @@ fn weigh_fields<B: Lane>(w: &[[B; 3]; 4], y: &mut [[V3<B>; 3]; 4]) {
 pub(super) fn mass_times<B: Lane>(e: &ElemData<B>, g: &Grad<B>, x: &[B; NDOF]) -> [B; NDOF] {
     let maps = FieldMaps::new(g);
     let w = gauss_field_weights(e);
-    maps.project(&maps.apply(x, &w))
+    let mut y = [[[B::cst(0.0); 3]; 3]; 4];
+    maps.apply(x, &w, &mut y);
+    maps.project(&y)
 }
 
 /// What the residual needs of an element's inertia: the inertial force M·acc + S and

@@ -48,8 +48,15 @@ pub struct ElemOut {
 
 /// The bits of an input's positions, frames and velocities.
 pub fn memo_key(i: &ElemIn) -> [u64; 36] {
-    let s = &i.state;
     let mut k = [0u64; 36];
+    memo_key_into(i, &mut k);
+    k
+}
+
+/// [`memo_key`] written over `k`.
+#[inline(always)]
+fn memo_key_into(i: &ElemIn, k: &mut [u64; 36]) {
+    let s = &i.state;
     for c in 0..3 {
         k[c] = s.u1[c].to_bits();
         k[12 + c] = s.u2[c].to_bits();
@@ -61,7 +68,22 @@ pub fn memo_key(i: &ElemIn) -> [u64; 36] {
     for (x, v) in k[24..].iter_mut().zip(&i.v12) {
         *x = v.to_bits();
     }
-    k
+}
+
+/// Mark `o`'s forces as those of `i`'s positions and velocities: the key written over
+/// the one `o` holds (as it does after every evaluation with inertia), else built.
+#[inline(always)]
+fn memoise(o: &mut ElemOut, i: &ElemIn) {
+    match &mut o.forces_of {
+        Some(k) => memo_key_into(i, k),
+        None => o.forces_of = Some(memo_key(i)),
+    }
+}
+
+/// Whether `o`'s forces are those of `i`'s positions and velocities.
+#[inline(always)]
+fn is_memo_of(o: &ElemOut, i: &ElemIn) -> bool {
+    o.forces_of.as_ref().is_some_and(|k| *k == memo_key(i))
 }
 
 impl ElemOut {
@@ -213,7 +235,7 @@ impl CpuEval {
             o.s = r.s;
             o.finert = r.finert;
             o.mv = r.mv;
-            o.forces_of = Some(memo_key(i));
+            memoise(o, i);
         } else {
             o.no_inertia();
         }
@@ -234,8 +256,7 @@ impl CpuEval {
     /// as they were.
     #[inline]
     pub fn one_residual(e: &ElemData, i: &ElemIn, inertia: bool, o: &mut ElemOut) {
-        let key = if inertia { Some(memo_key(i)) } else { None };
-        if key.is_some() && o.forces_of == key {
+        if inertia && is_memo_of(o, i) {
             Self::mass_product(e, i, o);
             return;
         }
@@ -243,13 +264,14 @@ impl CpuEval {
         let (frames, g, f, u) = force::residual_parts(e, &i.state);
         o.f = f;
         o.energy = u;
-        o.forces_of = key;
         if inertia {
+            memoise(o, i);
             let r = inertia::inertia_forces(e, &i.state, &g, &frames, &i.v12, &i.acc);
             o.s = r.s;
             o.finert = r.finert;
             o.mv = r.mv;
         } else {
+            o.forces_of = None;
             o.no_inertial_forces();
         }
     }
@@ -419,7 +441,7 @@ fn full_lanes(items: &mut [Item<'_>], inertia: bool, sc: &mut LaneScratch) {
     for (l, (_, i, o)) in items.iter_mut().enumerate() {
         o.energy = u.as_array()[l];
         if inertia {
-            o.forces_of = Some(memo_key(i));
+            memoise(o, i);
         } else {
             o.no_inertia();
         }
@@ -484,7 +506,7 @@ fn residual_lanes(items: &mut [Item<'_>], inertia: bool, g: &mut force::Grad<F4>
     for (l, (_, i, o)) in items.iter_mut().enumerate() {
         o.energy = u.as_array()[l];
         if forces.is_some() {
-            o.forces_of = Some(memo_key(i));
+            memoise(o, i);
         } else {
             o.forces_of = None;
             o.no_inertial_forces();
@@ -498,7 +520,7 @@ fn lanes_over(mut items: Vec<Item<'_>>, residual: bool, inertia: bool) {
     if residual {
         // the memoised ones: f, energy, s and mv are those of these positions already
         items.retain_mut(|(e, i, o)| {
-            let memo = inertia && o.forces_of == Some(memo_key(i));
+            let memo = inertia && is_memo_of(o, i);
             if memo {
                 CpuEval::mass_product(e, i, o);
             }
