@@ -471,8 +471,9 @@ unsafe fn fma_peak() -> f64 {
 /// to the scalar and baseline builds), 7 independent multiply chains beside 7 independent
 /// add chains so neither latency binds; the best of three runs. Where multiplies and
 /// adds share ports with each other (Intel's Golden Cove: multiplies on two ports, adds
-/// on two, one port shared) this is below the FMA peak, where they have ports of their
-/// own (AMD's Zen 4) it is at it: context for the stage's fraction of the FMA peak.
+/// on two, one port shared) this is below the FMA peak; where they have pipes of their
+/// own (AMD's Zen 4) it should be at it (not measured there): context for the stage's
+/// fraction of the FMA peak.
 fn unfused_gflops() -> Option<f64> {
     #[cfg(target_arch = "x86_64")]
     {

@@ -14,7 +14,7 @@
 //! M·a + S and M·v from the factored gradients ([`FieldMaps`], no rows). Its WGSL twin is
 //! `shaders/beam_inertia.wgsl` (S there still by the hyper-dual pass, the same numbers).
 
-use super::ad::{mvec, vadd, vcross, vsub, Dual, HyperDual, Jet2, Lane, Real, M3, V3};
+use super::ad::{mvec, vadd, vcross, vsub, Dual, HyperDual, Lane, Real, M3, V3};
 use super::force::*;
 use super::kinematics::*;
 use crate::math::{Mat3, Vec3};
@@ -39,9 +39,23 @@ fn gauss_fields<R: Real>(
     t1: &M3<R>,
     t2: &M3<R>,
 ) -> [[[R; 3]; 3]; 4] {
+    gauss_fields_as(e, u1, u2, t1, t2, |f| f)
+}
+
+/// [`gauss_fields`] with each Gauss point's three fields passed through `keep` as they
+/// are formed (so a caller that needs part of them never stages the whole).
+#[inline(always)]
+fn gauss_fields_as<R: Real, T>(
+    e: &ElemData<R::Base>,
+    u1: V3<R>,
+    u2: V3<R>,
+    t1: &M3<R>,
+    t2: &M3<R>,
+    keep: impl Fn([V3<R>; 3]) -> T,
+) -> [T; 4] {
     let kin = kinematics(e.chord0, e.l0, u1, u2, t1, t2);
     let chord = vadd(e.chord0.map(R::lift), vsub(u2, u1));
-    std::array::from_fn(|g| section_fields(&kin, u1, chord, GAUSS4[g].0))
+    std::array::from_fn(|g| keep(section_fields(&kin, u1, chord, GAUSS4[g].0)))
 }
 
 /// Derivatives of the position fields (a, b, c) at the Gauss points along `da` (the `.a`
@@ -68,15 +82,15 @@ pub(super) fn field_jets<B: Lane>(
     e: &ElemData<B>,
     (u1, u2, t1, t2): Positions<'_, B>,
     v: &[B; NDOF],
-) -> [[[Jet2<B>; 3]; 3]; 4] {
+) -> [[[super::ad::Jet2<B>; 3]; 3]; 4] {
     let (u1, tt1) = perturb_jet(u1, t1, &v[0..6]);
     let (u2, tt2) = perturb_jet(u2, t2, &v[6..12]);
     gauss_fields(e, u1, u2, &tt1, &tt2)
 }
 
-/// The second-order parts H(v, v) of the position fields' jets along `v`, as
-/// [`gauss_fields`] forms them, each Gauss point's jets reduced to their `.dd` parts as
-/// they are formed (so the 3.4 kB of jets in lanes are never staged or copied).
+/// The second-order parts H(v, v) of the position fields' jets along `v`, each Gauss
+/// point's jets reduced to their `.dd` parts as they are formed (so the 3.4 kB of jets in
+/// lanes are never staged or copied).
 #[inline(always)]
 pub(super) fn field_second<B: Lane>(
     e: &ElemData<B>,
@@ -85,9 +99,7 @@ pub(super) fn field_second<B: Lane>(
 ) -> [[V3<B>; 3]; 4] {
     let (u1, tt1) = perturb_jet(u1, t1, &v[0..6]);
     let (u2, tt2) = perturb_jet(u2, t2, &v[6..12]);
-    let kin = kinematics(e.chord0, e.l0, u1, u2, &tt1, &tt2);
-    let chord = vadd(e.chord0.map(Jet2::lift), vsub(u2, u1));
-    std::array::from_fn(|g| section_fields(&kin, u1, chord, GAUSS4[g].0).map(|f| f.map(|x| x.dd)))
+    gauss_fields_as(e, u1, u2, &tt1, &tt2, |f| f.map(|c| c.map(|x| x.dd)))
 }
 
 /// An element's node displacements and node frames (u1, u2, T1, T2), in any lanes.

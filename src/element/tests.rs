@@ -547,6 +547,8 @@ fn a_residual_at_unchanged_positions_and_velocities_reuses_forces_bit_for_bit() 
         for other in [moved, slow] {
             let mut again = memo;
             CpuEval::one_residual(&e, &other, true, &mut again);
+            // the key held is overwritten in place with the new positions and velocities
+            assert_eq!(again.forces_of, Some(memo_key(&other)));
             let mut fresh = ElemOut::default();
             CpuEval::one_residual(&e, &other, true, &mut fresh);
             assert_eq!(
