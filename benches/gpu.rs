@@ -96,7 +96,10 @@ fn main() {
         println!("no GPU adapter: CPU numbers only");
     }
     for (file, sets) in [
-        ("flapping_blade.toml", vec![("t_end".to_string(), 0.25)]),
+        (
+            "flapping_blade.toml",
+            vec![("t_end".to_string(), 0.25), ("dt".to_string(), 0.005)],
+        ),
         ("minimast_bay.toml", vec![("t_end".to_string(), 0.02)]),
     ] {
         let m = latdyn::model::load(&root.join(file), &sets).expect("model");

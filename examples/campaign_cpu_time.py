@@ -8,7 +8,7 @@ old, new, variants, reps = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.a
 res = {"old": [], "new": []}
 for r in range(reps):
     for tag, exe in (("old", old), ("new", new)):
-        cmd = [exe, "sweep", "models/flapping_blade.toml", "--vary", f"omega=20:40:{variants}",
+        cmd = [exe, "sweep", "models/flapping_blade.toml", "--vary", f"omega=20:40:{variants}", "--set", "dt=0.005",
                "--threads", "2", "--backend", "cpu", "-o", os.path.join(tempfile.gettempdir(), f"campaign_cpu_{tag}.h5")]
         u0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()

@@ -22,7 +22,7 @@ python3 examples/design_studies.py minimast "$MS" docs/studies/minimast_hinge_sw
 # the same designs screened quasi-statically (sweep --path), timed beside the dynamic sweep
 python3 examples/minimast_quasistatic.py "$L" --study
 BC=$OUT/blade_campaign.h5
-have "$BC" || $L sweep models/flapping_blade.toml --vary omega=1:9:33 --frequency mid_moment -o "$BC"
+have "$BC" || $L sweep models/flapping_blade.toml --vary omega=1:9:33 --set dt=0.005 --frequency mid_moment -o "$BC"  # dt of docs/studies/blade_speed_campaign.md
 BM=$OUT/blade_modes.json
 have "$BM" || $L modes models/flapping_blade.toml --vary omega=1:9:33 --count 3 --json > "$BM"
 python3 examples/design_studies.py blade "$BC" "$BM" docs/studies/blade_speed_campaign.md

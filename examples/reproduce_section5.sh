@@ -48,7 +48,7 @@ plot minimast_drive_force "$MM" --sensor drive_force \
 
 # --- Flapping blade: rotor-speed campaign, 33 speeds 1..9 rad/s ----------------------
 BC=$OUT/blade_campaign.h5
-have "$BC" || $L sweep models/flapping_blade.toml --vary omega=1:9:33 --frequency mid_moment -o "$BC"
+have "$BC" || $L sweep models/flapping_blade.toml --vary omega=1:9:33 --set dt=0.005 --frequency mid_moment -o "$BC"  # dt of docs/studies/blade_speed_campaign.md
 BM=$OUT/blade_modes.json
 have "$BM" || $L modes models/flapping_blade.toml --vary omega=1:9:33 --count 3 --json > "$BM"
 # variants 8 and 20 of the campaign are Omega = 3 and 6 rad/s

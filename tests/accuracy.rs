@@ -105,9 +105,10 @@ fn the_issue_runs_at_ten_times_the_step_warn_that_the_step_is_too_large() {
         // sees no load at all, its response and so its time-error estimate are 0, and the
         // warning is the missed impulse's, naming the load's node
         ("models/rotating_cantilever.toml", vec!["dt=0.1"], &["tip"]),
+        // the issue's step: the scene shipped with dt = 0.01 until session 23
         (
             "models/rotating_cantilever.toml",
-            vec!["omega=20", "t_end=3"],
+            vec!["omega=20", "t_end=3", "dt=0.01"],
             &["root_moment"],
         ),
         (
@@ -158,6 +159,71 @@ fn converged_runs_carry_no_time_error_warning() {
 }
 
 #[test]
+fn every_shipped_scene_but_the_mini_mast_runs_without_a_warning_at_its_shipped_settings() {
+    // Issue 14: no warning on a shipped scene at its shipped settings, and the estimate
+    // behind that silence under 1 %. Until session 23 the blade (0.005 s), the rotating
+    // cantilever (0.01 s) and the dynamic runs of the two statics scenes bend45 and
+    // lee_frame (0.01 s) warned, truly: their histories were 0.11, 0.50, 0.04 and 0.03
+    // of a range off. They ship since at the steps that meet 1 %, measured against a
+    // quarter step (`examples/time_error_ladder.py`): blade 0.001 s, mid-span moment
+    // 6.6e-3 (estimate 9.0e-3); rotating cantilever 1e-4 s, root moment 7.0e-3 (8.2e-3);
+    // bend45 2e-4 s, tip 2.7e-4 (7.5e-3); lee_frame 1e-4 s, knee moment 5.4e-3 (6.1e-3).
+    // The Mini-Mast bays still warn, truly: their locks ring the members, which no step
+    // tried resolves (`a_time_error_after_a_hinge_lock_names_the_lock_as_its_likely_cause`).
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .filter(|p| {
+            !p.file_name()
+                .unwrap()
+                .to_str()
+                .unwrap()
+                .starts_with("minimast")
+        })
+        .collect();
+    names.sort();
+    assert!(names.len() >= 8, "{names:?}");
+    let runs: Vec<_> = names
+        .into_iter()
+        .map(|p| std::thread::spawn(move || (run_json(&[p.to_str().unwrap()]), p)))
+        .collect();
+    for r in runs {
+        let (v, p) = r.join().unwrap();
+        let est = v["time_error_estimate"].as_f64().unwrap();
+        eprintln!("{}: estimate {est:.2e}, {} steps", p.display(), v["steps"]);
+        assert!(
+            warnings(&v).is_empty(),
+            "{}: {:?}",
+            p.display(),
+            warnings(&v)
+        );
+        assert!(est < 1e-2, "{}: {est}", p.display());
+    }
+}
+
+#[test]
+fn the_blade_at_its_shipped_step_is_within_one_percent_of_a_run_at_an_eighth_of_it() {
+    // The silence of the shipped blade checked against the truth, over 4 s of flapping
+    // (the mid-span moment's error grows along the run: 6.6e-3 of its range over the
+    // shipped 10 s). Tolerance: the 1 % the warning promises.
+    let base = run_json(&["models/flapping_blade.toml", "--set", "t_end=4"]);
+    let fine = run_json(&[
+        "models/flapping_blade.toml",
+        "--set",
+        "t_end=4",
+        "--set",
+        "dt=0.000125",
+    ]);
+    for sensor in ["flap_angle", "tip", "mid_moment"] {
+        let off = history_error(&base, &fine, sensor);
+        eprintln!("{sensor}: {off:.2e} of its range off");
+        assert!(off < 1e-2, "{sensor}: {off:.3e}");
+    }
+}
+
+#[test]
 fn the_four_bar_started_consistently_is_within_one_percent_at_ten_times_its_step() {
     // Issue 14 listed the four-bar at 10× its step 7-12 % off and silent. Its hinge
     // error was the cranks' ringing from the inconsistent start; started consistently
@@ -179,8 +245,15 @@ fn the_estimate_is_within_a_factor_three_of_the_true_time_error() {
     // truth: the same run at dt/4, whose own error is 1/16 of the base run's (second
     // order), so the difference is the base run's error within 7 %. Factor 3 is the
     // issue's bar for an error estimate. Measured: flap angle 4.7e-4 vs 2.6e-4, mid
-    // moment 3.5e-2 vs 4.6e-2 (the tip sensor is 3.6× over and is not asserted).
-    let base = run_json(&["models/flapping_blade.toml", "--set", "t_end=3"]);
+    // moment 3.5e-2 vs 4.6e-2 (the tip sensor is 3.6× over and is not asserted). The
+    // base is the blade's step until session 23 (it ships at 0.001 s since).
+    let base = run_json(&[
+        "models/flapping_blade.toml",
+        "--set",
+        "t_end=3",
+        "--set",
+        "dt=0.005",
+    ]);
     let fine = run_json(&[
         "models/flapping_blade.toml",
         "--set",
@@ -431,9 +504,10 @@ fn a_step_that_does_not_divide_the_output_interval_is_spread_evenly_not_ended_by
 }
 
 #[test]
-fn the_rotating_cantilever_at_high_speed_converges_under_accuracy_control_from_the_shipped_step() {
+fn the_rotating_cantilever_at_high_speed_converges_under_accuracy_control_from_a_coarse_step() {
     // Issue 14: at Ω̄ = 20 the shipped step read the tip peak 17× and the root moment peak
-    // 160× low. `--accuracy 1e-2` from the shipped dt = 0.01, no step chosen by hand,
+    // 160× low. `--accuracy 1e-2` from that step, dt = 0.01 (the scene ships at 1e-4 s
+    // since session 23), no step chosen by hand,
     // against a fixed step of 3.9e-5 s (itself within 7.4e-4 of a run at half of it,
     // measured). Measured over 4 s: Ω̄ = 20, 3 runs, 27 200 steps, largest difference
     // 6.3e-3 of the range (root moment); Ω̄ = 50, 3 runs, 39 172 steps, 7.3e-3. The
@@ -444,7 +518,13 @@ fn the_rotating_cantilever_at_high_speed_converges_under_accuracy_control_from_t
         .map(|w| {
             std::thread::spawn(move || {
                 let o = format!("omega={w}");
-                let base = ["models/rotating_cantilever.toml", "--set", &o];
+                let base = [
+                    "models/rotating_cantilever.toml",
+                    "--set",
+                    &o,
+                    "--set",
+                    "dt=0.01",
+                ];
                 let mut a = base.to_vec();
                 a.extend(["--set", "t_end=4", "--accuracy", "1e-2"]);
                 let adaptive = run_json(&a);
@@ -519,6 +599,8 @@ fn a_pulse_narrower_than_the_sampling_of_a_step_is_still_warned_and_refined() {
         "models/rotating_cantilever.toml",
         "--set",
         "t_end=0.5",
+        "--set",
+        "dt=0.01",
         "--set",
         "t_pulse=1e-3",
     ];
@@ -603,7 +685,7 @@ fn a_load_faster_than_the_steps_sample_it_is_warned_not_applied_at_an_alias() {
         "alias",
     );
     let p = path.to_str().unwrap();
-    let coarse = run_json(&[p, "--set", "t_end=1"]);
+    let coarse = run_json(&[p, "--set", "t_end=1", "--set", "dt=0.01"]);
     assert!(
         coarse["load_sampling_error"].as_f64().unwrap() > 1.0,
         "{coarse}"
@@ -625,8 +707,14 @@ fn a_load_faster_than_the_steps_sample_it_is_warned_not_applied_at_an_alias() {
         "{:?}",
         warnings(&fine)
     );
-    // the shipped pulse at the shipped step (5 steps per pulse) reads 0.08: not aliased
-    let shipped = run_json(&["models/rotating_cantilever.toml", "--set", "t_end=1"]);
+    // the shipped pulse at dt = 0.01 (5 steps per pulse) reads 0.08: not aliased
+    let shipped = run_json(&[
+        "models/rotating_cantilever.toml",
+        "--set",
+        "t_end=1",
+        "--set",
+        "dt=0.01",
+    ]);
     let e = shipped["load_sampling_error"].as_f64().unwrap();
     assert!(e > 0.05 && e < 0.15, "{e}");
     std::fs::remove_dir_all(path.parent().unwrap()).ok();

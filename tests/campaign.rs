@@ -99,6 +99,8 @@ fn merged_shards_run_on_different_thread_counts_equal_the_single_sweep_bit_for_b
     // spinning hub + --frequency: sensors, status and derived quantities all merge
     let base = &[
         "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
         "--vary",
         "omega=1:5:7",
         "--set",
@@ -303,6 +305,8 @@ fn resume_completes_a_shard_stopped_by_sigterm_to_the_values_of_an_uninterrupted
     // batch's variants end together, so the first flush could come with the last)
     let base = &[
         "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
         "--vary",
         "omega=1:5:80",
         "--set",
@@ -382,6 +386,8 @@ fn merged_campaign_opens_in_xarray_with_named_dimensions_and_parameter_coordinat
     let dir = scratch("xarray");
     let base = &[
         "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
         "--vary",
         "omega=1:5:9",
         "--set",
@@ -399,6 +405,8 @@ fn merged_campaign_opens_in_xarray_with_named_dimensions_and_parameter_coordinat
     let o = run(latdyn(&[
         "sweep",
         "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
         "--variants",
         s(&table),
         "--set",

@@ -253,7 +253,8 @@ fn nan_drive_mid_run_names_the_expression_and_time() {
     .unwrap();
     assert!(base.contains("drive = \"omega*t\""));
     let text = base.replace("drive = \"omega*t\"", "drive = \"omega*t + 0*sqrt(1 - t)\"");
-    let m = latdyn::model::compile_str(&text, "nan_drive.toml", &[("t_end".into(), 1.5)])
+    let sets = [("t_end".into(), 1.5), ("dt".into(), 0.01)];
+    let m = latdyn::model::compile_str(&text, "nan_drive.toml", &sets)
         .unwrap_or_else(|e| panic!("{e}"));
     let (_, _, err) = latdyn::solver::dynamics::run(&m, |_, _| {});
     let e = err.expect("the run must fail").to_string();

@@ -32,7 +32,13 @@ fn campaign(model: &str, variants: Vec<Vec<(String, f64)>>, threads: usize) -> C
 fn ensemble_sensors_are_bit_identical_to_running_each_variant_alone() {
     let vs: Vec<Vec<(String, f64)>> = [1.0, 3.0, 7.0]
         .iter()
-        .map(|w| vec![("omega".to_string(), *w), ("t_end".to_string(), 2.0)])
+        .map(|w| {
+            vec![
+                ("omega".to_string(), *w),
+                ("t_end".to_string(), 2.0),
+                ("dt".to_string(), 0.01),
+            ]
+        })
         .collect();
     let c = campaign("models/rotating_cantilever.toml", vs.clone(), 2);
     let p = ensemble::prepare(&c).unwrap();

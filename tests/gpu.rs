@@ -772,7 +772,7 @@ fn kernels_match_cpu_on_the_states_of_real_simulations() {
     for (file, sets) in [
         (
             "rotating_cantilever.toml",
-            vec![("t_end", 1.0), ("omega", 8.0)],
+            vec![("t_end", 1.0), ("omega", 8.0), ("dt", 0.01)],
         ),
         ("flapping_blade.toml", vec![("t_end", 0.5)]),
     ] {
@@ -822,7 +822,7 @@ fn sweep(stage: &latdyn::ensemble::Stage, threads: usize) -> latdyn::ensemble::C
     let c = Campaign {
         model_path: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("models/rotating_cantilever.toml"),
-        base: vec![],
+        base: vec![("dt".to_string(), 0.01)],
         variants: [0.0, 5.0, 10.0]
             .iter()
             .map(|w| vec![("omega".to_string(), *w)])
@@ -986,7 +986,7 @@ fn a_gpu_batch_gives_each_variant_its_lone_gpu_history_bit_for_bit() {
     let campaign = |batch: usize| Campaign {
         model_path: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("models/rotating_cantilever.toml"),
-        base: vec![("t_end".to_string(), 1.5)],
+        base: vec![("t_end".to_string(), 1.5), ("dt".to_string(), 0.01)],
         variants: variants.clone(),
         threads: 1,
         batch,

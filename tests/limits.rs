@@ -238,7 +238,7 @@ fn huge_vary_ranges_fail_before_any_variant_is_made() {
         "--vary",
         "omega=1:2:50000",
         "--set",
-        "dt=1e-3",
+        "t_end=120",
     ]);
     fails_with(&out, &["values the campaign keeps", "output_values"]);
 }

@@ -152,6 +152,8 @@ fn long_sweep(n: usize, out: &Path) -> Command {
     latdyn(&[
         "sweep",
         "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
         "--vary",
         &vary,
         "--set",
@@ -212,6 +214,8 @@ fn sigterm_mid_run_keeps_the_samples_so_far_marked_interrupted() {
         let child = spawn(latdyn(&[
             "run",
             "models/rotating_cantilever.toml",
+            "--set",
+            "dt=0.01",
             "--set",
             "t_end=1000",
             "-o",
@@ -276,6 +280,8 @@ fn sigkill_mid_sweep_leaves_the_last_flush_valid_and_a_stale_lock_is_harmless() 
         latdyn(&[
             "sweep",
             "models/rotating_cantilever.toml",
+            "--set",
+            "dt=0.01",
             "--vary",
             "omega=1:2:2",
             "--set",
@@ -298,6 +304,8 @@ fn sigkill_mid_run_keeps_the_periodic_flush() {
     let child = spawn(latdyn(&[
         "run",
         "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
         "--set",
         "t_end=1000",
         "-o",
@@ -335,7 +343,7 @@ fn a_second_writer_is_refused_naming_the_first_and_the_first_campaign_survives()
         if extra {
             args.extend(["--vary", "omega=7:8:2"]);
         }
-        args.extend(["--set", "t_end=0.1", "-o", s(&path)]);
+        args.extend(["--set", "t_end=0.1", "--set", "dt=0.01", "-o", s(&path)]);
         let out = run_for(latdyn(&args), 60);
         assert_eq!(out.status.code(), Some(2), "{verb}: {}", stderr(&out));
         let err = stderr(&out);
@@ -456,6 +464,8 @@ fn run_into_a_missing_directory_fails_before_simulating() {
                 "run",
                 "models/rotating_cantilever.toml",
                 "--set",
+                "dt=0.01",
+                "--set",
                 "t_end=5000",
                 "--json",
                 "-o",
@@ -472,6 +482,8 @@ fn run_into_a_missing_directory_fails_before_simulating() {
         latdyn(&[
             "sweep",
             "models/rotating_cantilever.toml",
+            "--set",
+            "dt=0.01",
             "--vary",
             "omega=1:2:2",
             "-o",

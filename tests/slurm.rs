@@ -338,7 +338,7 @@ fn slurm_array_merge_equals_the_single_sweep_and_a_cancelled_task_is_resumed() {
     // batches a task's variants finish together, and once the SIMD-lane stage made them
     // faster the task's last batch ended before the cancel arrived (session 21).
     let campaign = format!(
-        "{} --vary omega=1:5:{VARIANTS} --set t_end=20 --batch 1",
+        "{} --vary omega=1:5:{VARIANTS} --set t_end=20 --set dt=0.01 --batch 1",
         s(&model)
     );
 

@@ -394,9 +394,10 @@ impl RunStats {
     /// than its step should. Generalized-α with ρ∞ < 1 damps the frequencies the step does
     /// not resolve, on purpose, so a clean run loses a little: the energy of the modes
     /// above ~1/(10 dt) and the error of the resolved ones. Measured at the shipped
-    /// settings (loss): bend45 2.7e-4, cantilever 0, flapping_blade 7.5e-4, fourbar
-    /// 8.7e-4, minimast_bay 2.7e-3, pendulum (ρ∞ = 1) 2.3e-7, rotating_cantilever 9.8e-5
-    /// (5.7e-4 before its steady start, session 18), spinup_beam 4.4e-4 (and 2.0e-3 at
+    /// settings until session 23 (loss): bend45 2.7e-4, cantilever 0, flapping_blade
+    /// 7.5e-4, fourbar 8.7e-4, minimast_bay 2.7e-3, pendulum (ρ∞ = 1) 2.3e-7,
+    /// rotating_cantilever 9.8e-5 (5.7e-4 before its steady start, session 18; 4e-9 at
+    /// its step since session 23), spinup_beam 4.4e-4 (and 2.0e-3 at
     /// dt = 0.01, tip within 3 % of converged). Runs that are wrong by far more than 1 %:
     /// spinup_beam at dt = 0.02 5.2e-2 (final hub torque 5.6 N·m, converged −0.46), at
     /// dt = 0.05 7.1e-2 (tip vibration 0.25 m, converged 0.0037 m); the rotating
