@@ -1183,8 +1183,10 @@ impl<'m> Integrator<'m> {
     }
 
     /// Lock hinges whose lock time has come or whose angle has reached the lock angle.
-    fn check_locks(&mut self) {
-        let prev_q = &self.prev_q;
+    /// A lock is an inelastic impact: the hinges' rates stop through an impulse that acts
+    /// on their own coordinates only (see [`Self::lock_impulse`]).
+    async fn check_locks(&mut self) {
+        let mut locking: Vec<(usize, usize, f64)> = Vec::new();
         for (ih, h) in self.model.hinges.iter().enumerate() {
             if self.s.locked[ih] {
                 continue;
@@ -1192,7 +1194,7 @@ impl<'m> Integrator<'m> {
             let th = self.s.q[h.dof];
             let by_time = h.lock_time.is_some_and(|tl| self.s.t >= tl - 1e-12);
             let by_angle = h.lock_angle.is_some_and(|la| {
-                let before = prev_q[h.dof] - la;
+                let before = self.prev_q[h.dof] - la;
                 let now = th - la;
                 now == 0.0 || before.signum() != now.signum()
             });
@@ -1200,20 +1202,128 @@ impl<'m> Integrator<'m> {
                 if let (true, Some(la)) = (by_angle, h.lock_angle) {
                     self.s.q[h.dof] = la;
                 }
-                self.s.locked[ih] = true;
-                self.stats.first_lock.get_or_insert((ih, self.s.t));
-                self.prev_h = 0.0;
-                self.te.h_prev = 0.0;
-                if let Some(k) = self.model.dofs[h.dof].eq {
-                    (self.te.gx[k], self.te.gv[k], self.te.ga[k], self.te.gacc[k]) =
-                        (0.0, 0.0, 0.0, 0.0);
+                if let Some(e) = self.model.dofs[h.dof].eq {
+                    locking.push((ih, e, self.s.v[h.dof]));
                 }
-                self.s.v[h.dof] = 0.0;
-                self.s.a[h.dof] = 0.0;
-                self.aux[h.dof] = 0.0;
-                joint::update_kinematics(self.model, &mut self.s);
             }
         }
+        if locking.is_empty() {
+            return;
+        }
+        joint::update_kinematics(self.model, &mut self.s);
+        if let Err(why) = self.lock_impulse(&locking).await {
+            self.stats.notes.push(format!(
+                "hinge `{}` locked at t = {:.6} s with its rate stopped alone, not by an \
+                 impulse on its own coordinate ({why}): the motion after the lock may be off",
+                self.model.hinges[locking[0].0].name, self.s.t
+            ));
+        }
+        for &(ih, e, _) in &locking {
+            let d = self.model.hinges[ih].dof;
+            self.s.locked[ih] = true;
+            self.stats.first_lock.get_or_insert((ih, self.s.t));
+            (self.te.gx[e], self.te.gv[e], self.te.ga[e], self.te.gacc[e]) = (0.0, 0.0, 0.0, 0.0);
+            self.s.v[d] = 0.0;
+            self.s.a[d] = 0.0;
+            self.aux[d] = 0.0;
+        }
+        self.prev_h = 0.0;
+        self.te.h_prev = 0.0;
+        joint::update_kinematics(self.model, &mut self.s);
+    }
+
+    /// The velocity jump of an inelastic lock of the hinges `locking` (hinge, equation,
+    /// rate): the change Δv of the free coordinates' rates that stops the hinges and whose
+    /// generalized impulse M Δv acts on the hinges' own equations only (the moment pairs
+    /// the stops exert), M the mass matrix at the lock's configuration. So Δv = −Y λ with
+    /// M Y = E (E the hinges' unit columns) and (Eᵀ Y) λ = θ̇: the kinetic energy the
+    /// impact takes, ½ θ̇ᵀ (Eᵀ Y)⁻¹ θ̇, is the least any stop of these rates can take, and
+    /// the momentum of every motion the stops do not resist (a free hub's spin, a free
+    /// body's drift) is kept. Stopping the rate alone, as before session 23, applied
+    /// impulses to every coordinate that M couples to the hinge (the members' end nodes):
+    /// forces no stop exerts.
+    async fn lock_impulse(&mut self, locking: &[(usize, usize, f64)]) -> Result<(), String> {
+        let model = self.model;
+        let n = model.n_eq;
+        let mut solve = vec![false; n];
+        for (d, dof) in model.dofs.iter().enumerate() {
+            if let Some(e) = dof.eq {
+                solve[e] = self.s.is_active(model, d);
+            }
+        }
+        let mut at_rest = self.s.clone();
+        at_rest.v.iter_mut().for_each(|v| *v = 0.0);
+        at_rest.a.iter_mut().for_each(|a| *a = 0.0);
+        // (the factorization of the assembled values may fail where inactive equations
+        // leave empty rows: the values are what is wanted; the next step refactors)
+        let _ = self
+            .sys
+            .evaluate_async(
+                model,
+                &self.asm,
+                &at_rest,
+                Coeffs::dynamic(0.0, 0.0, 1.0),
+                true,
+            )
+            .await;
+        let (cp, ri) = (self.sys.pattern.col_ptr(), self.sys.pattern.row_idx());
+        let mut m = self.sys.values.clone();
+        for j in 0..n {
+            for slot in cp[j]..cp[j + 1] {
+                let i = ri[slot];
+                if !(solve[i] && solve[j]) {
+                    m[slot] = f64::from(u8::from(i == j));
+                }
+            }
+        }
+        let mut lu = crate::linalg::SparseLu::from_symbolic(self.sys.symbolic().clone());
+        lu.factor(&m)
+            .map_err(|e| format!("the mass matrix cannot be factored: {e}"))?;
+        let k = locking.len();
+        let mut y = vec![vec![0.0; n]; k];
+        for (col, &(_, e, _)) in y.iter_mut().zip(locking) {
+            col[e] = 1.0;
+            lu.try_solve_in_place(col)
+                .map_err(|e| format!("the mass matrix solve failed: {e}"))?;
+        }
+        // (Eᵀ Y) λ = θ̇, k × k and symmetric positive definite: Gaussian elimination
+        let mut g: Vec<Vec<f64>> = locking
+            .iter()
+            .map(|&(_, ea, _)| y.iter().map(|col| col[ea]).collect())
+            .collect();
+        let mut lambda: Vec<f64> = locking.iter().map(|&(_, _, rate)| rate).collect();
+        for p in 0..k {
+            let piv = g[p][p];
+            if !(piv.is_finite() && piv > 0.0) {
+                return Err(format!("a hinge without inertia (mobility {piv:e})"));
+            }
+            for r in p + 1..k {
+                let f = g[r][p] / piv;
+                for c in p..k {
+                    g[r][c] -= f * g[p][c];
+                }
+                lambda[r] -= f * lambda[p];
+            }
+        }
+        for p in (0..k).rev() {
+            let tail: f64 = (p + 1..k).map(|c| g[p][c] * lambda[c]).sum();
+            lambda[p] = (lambda[p] - tail) / g[p][p];
+        }
+        if lambda.iter().any(|l| !l.is_finite()) {
+            return Err("the impulse is not finite".to_string());
+        }
+        for (d, dof) in model.dofs.iter().enumerate() {
+            if let Some(e) = dof.eq {
+                if solve[e] {
+                    self.s.v[d] -= y
+                        .iter()
+                        .zip(&lambda)
+                        .map(|(col, l)| col[e] * l)
+                        .sum::<f64>();
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Advance to time `t_target` exactly, cutting steps where Newton fails.
@@ -1281,7 +1391,7 @@ impl<'m> Integrator<'m> {
                 StepResult::Accepted { iters } => {
                     self.stats.steps += 1;
                     self.stats.newton_iterations += iters;
-                    self.check_locks();
+                    self.check_locks().await;
                     if iters <= 4 && self.h < dt_nominal {
                         // recover the nominal step after easy steps
                         self.h = (self.h * 2.0).min(dt_nominal);
