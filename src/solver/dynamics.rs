@@ -379,6 +379,10 @@ pub struct RunStats {
     pub consistent_start: Option<super::start::ConsistentStart>,
     /// the first hinge lock of the run: (hinge, time [s])
     pub first_lock: Option<(usize, f64)>,
+    /// the time-error estimate (the worst sensor's, as a share of its range so far) just
+    /// before the first hinge lock: how far the histories up to the lock can be trusted
+    /// when the impact's ringing makes the run's estimate large
+    pub time_error_before_first_lock: Option<f64>,
 }
 
 impl RunStats {
@@ -1210,6 +1214,14 @@ impl<'m> Integrator<'m> {
         if locking.is_empty() {
             return;
         }
+        if self.stats.first_lock.is_none() {
+            self.stats.time_error_before_first_lock = self
+                .te
+                .by_sensor()
+                .into_iter()
+                .filter(|x| x.is_finite())
+                .reduce(f64::max);
+        }
         joint::update_kinematics(self.model, &mut self.s);
         if let Err(why) = self.lock_impulse(&locking).await {
             self.stats.notes.push(format!(
@@ -1549,10 +1561,18 @@ impl<'m> Integrator<'m> {
         if let Some((k, e)) = worst.filter(|(_, e)| *e > limit) {
             // a lock is the other likely cause: an impact rings what it strikes
             let lock = st.first_lock.map_or(String::new(), |(h, t)| {
+                let before = match st.time_error_before_first_lock {
+                    Some(b) if b <= limit => format!(
+                        "; up to that lock the estimate was {:.2} %, within the limit",
+                        100.0 * b
+                    ),
+                    Some(b) => format!("; up to that lock the estimate was {:.2} %", 100.0 * b),
+                    None => String::new(),
+                };
                 format!(
                     "; hinge `{}` locked at t = {t:.6} s: a lock is an impact, and the members \
                      it strikes ring at their own (axial) frequencies, which a smaller dt \
-                     resolves only when it resolves them",
+                     resolves only when it resolves them{before}",
                     self.model.hinges[h].name
                 )
             });

@@ -262,6 +262,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 })).collect::<Vec<_>>(),
             })),
             "time_error_estimate": stats.time_error_estimate,
+            "time_error_before_first_lock": stats.time_error_before_first_lock,
             "load_impulse_error": stats.load_impulse_error,
             "load_sampling_error": stats.load_sampling_error,
             "drive_rate_error": stats.drive_rate_error,
