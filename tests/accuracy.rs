@@ -170,11 +170,8 @@ fn every_shipped_scene_but_the_mini_mast_runs_without_a_warning_at_its_shipped_s
     // bend45 2e-4 s, tip 2.7e-4 (7.5e-3); lee_frame 1e-4 s, knee moment 5.4e-3 (6.1e-3).
     // The Mini-Mast bays still warn, truly: their locks ring the members, which no step
     // tried resolves (`a_time_error_after_a_hinge_lock_names_the_lock_as_its_likely_cause`).
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
-    let mut names: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+    let names: Vec<_> = common::shipped_model_paths()
+        .into_iter()
         .filter(|p| {
             !p.file_name()
                 .unwrap()
@@ -183,7 +180,6 @@ fn every_shipped_scene_but_the_mini_mast_runs_without_a_warning_at_its_shipped_s
                 .starts_with("minimast")
         })
         .collect();
-    names.sort();
     assert!(names.len() >= 8, "{names:?}");
     let runs: Vec<_> = names
         .into_iter()

@@ -276,13 +276,7 @@ fn shipped_scenes_run_without_energy_warnings_at_their_shipped_settings() {
     // session 23: bend45 3.1e-7, cantilever 0, flapping_blade 6.0e-5, fourbar 4.3e-5,
     // lee_frame 1.2e-7, minimast_bay 2.7e-3, pendulum 2.3e-7, rotating_cantilever 4e-9,
     // spinup_beam 4.4e-4; ENERGY_LOSS_LIMIT is 1e-2.
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
-    let mut names: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
-    names.sort();
+    let names = shipped_model_paths();
     assert!(names.len() >= 8);
     for p in names {
         let m = load(&p, &[]).unwrap();

@@ -5,6 +5,18 @@
 use latdyn::model::{compile_str, load, Model};
 use std::path::Path;
 
+/// The shipped model files (models/*.toml), sorted.
+pub fn shipped_model_paths() -> Vec<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    names.sort();
+    names
+}
+
 pub fn shipped(name: &str, sets: &[(&str, f64)]) -> Model {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("models")
