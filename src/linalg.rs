@@ -210,6 +210,21 @@ impl SparsePattern {
         csc_slot(&self.structure, row, col)
     }
 
+    /// `values` restricted to the equations `keep`: every entry in a row or column not
+    /// kept becomes that of the identity (1 on the diagonal, else 0), so a system of the
+    /// kept equations can be factored and solved in the full pattern.
+    pub fn identity_outside(&self, values: &mut [f64], keep: &[bool]) {
+        let (cp, ri) = (self.col_ptr(), self.row_idx());
+        for j in 0..self.n {
+            for slot in cp[j]..cp[j + 1] {
+                let i = ri[slot];
+                if !(keep[i] && keep[j]) {
+                    values[slot] = f64::from(u8::from(i == j));
+                }
+            }
+        }
+    }
+
     /// Number of stored entries (length of a values array).
     pub fn nnz(&self) -> usize {
         self.structure.row_idx().len()

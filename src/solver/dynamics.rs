@@ -1278,16 +1278,8 @@ impl<'m> Integrator<'m> {
                 true,
             )
             .await;
-        let (cp, ri) = (self.sys.pattern.col_ptr(), self.sys.pattern.row_idx());
         let mut m = self.sys.values.clone();
-        for j in 0..n {
-            for slot in cp[j]..cp[j + 1] {
-                let i = ri[slot];
-                if !(solve[i] && solve[j]) {
-                    m[slot] = f64::from(u8::from(i == j));
-                }
-            }
-        }
+        self.sys.pattern.identity_outside(&mut m, &solve);
         let mut lu = crate::linalg::SparseLu::from_symbolic(self.sys.symbolic().clone());
         lu.factor(&m)
             .map_err(|e| format!("the mass matrix cannot be factored: {e}"))?;
@@ -1298,32 +1290,14 @@ impl<'m> Integrator<'m> {
             lu.try_solve_in_place(col)
                 .map_err(|e| format!("the mass matrix solve failed: {e}"))?;
         }
-        // (Eᵀ Y) λ = θ̇, k × k and symmetric positive definite: Gaussian elimination
-        let mut g: Vec<Vec<f64>> = locking
+        // (Eᵀ Y) λ = θ̇: the hinges' mobilities, k × k, row-major
+        let g: Vec<f64> = locking
             .iter()
-            .map(|&(_, ea, _)| y.iter().map(|col| col[ea]).collect())
+            .flat_map(|&(_, ea, _)| y.iter().map(move |col| col[ea]))
             .collect();
         let mut lambda: Vec<f64> = locking.iter().map(|&(_, _, rate)| rate).collect();
-        for p in 0..k {
-            let piv = g[p][p];
-            if !(piv.is_finite() && piv > 0.0) {
-                return Err(format!("a hinge without inertia (mobility {piv:e})"));
-            }
-            for r in p + 1..k {
-                let f = g[r][p] / piv;
-                for c in p..k {
-                    g[r][c] -= f * g[p][c];
-                }
-                lambda[r] -= f * lambda[p];
-            }
-        }
-        for p in (0..k).rev() {
-            let tail: f64 = (p + 1..k).map(|c| g[p][c] * lambda[c]).sum();
-            lambda[p] = (lambda[p] - tail) / g[p][p];
-        }
-        if lambda.iter().any(|l| !l.is_finite()) {
-            return Err("the impulse is not finite".to_string());
-        }
+        crate::linalg::dense_solve(&g, k, &mut lambda)
+            .map_err(|e| format!("the hinges' mobility cannot be inverted: {e}"))?;
         for (d, dof) in model.dofs.iter().enumerate() {
             if let Some(e) = dof.eq {
                 if solve[e] {

@@ -191,14 +191,10 @@ async fn consistent_velocity(
     // K + ε W on the solved equations, the identity on the others
     let (cp, ri) = (sys.pattern.col_ptr(), sys.pattern.row_idx());
     let mut a = k.clone();
-    for j in 0..n {
-        for slot in cp[j]..cp[j + 1] {
-            let i = ri[slot];
-            a[slot] = match (solve[i] && solve[j], i == j) {
-                (true, true) => k[slot] + eps * weights[i],
-                (true, false) => k[slot],
-                (false, diag) => f64::from(u8::from(diag)),
-            };
+    sys.pattern.identity_outside(&mut a, &solve);
+    for e in (0..n).filter(|e| solve[*e]) {
+        if let Some(slot) = sys.pattern.slot(e, e) {
+            a[slot] += eps * weights[e];
         }
     }
     let mut lu = SparseLu::from_symbolic(sys.symbolic().clone());
