@@ -317,6 +317,12 @@ impl CampaignFile {
         let (t_fail, wall_s) = (col(layout::T_FAIL)?, col(layout::WALL_S)?);
         let (growth, loss) = (col(layout::ENERGY_GROWTH)?, col(layout::ENERGY_LOSS)?);
         let tee = col(layout::TIME_ERROR_ESTIMATE)?;
+        // written since session 24: a file from before reads as "no lock estimate"
+        let tee_lock = if file.has_dataset(layout::TIME_ERROR_BEFORE_FIRST_LOCK) {
+            col(layout::TIME_ERROR_BEFORE_FIRST_LOCK)?
+        } else {
+            vec![f64::NAN; nv]
+        };
         if [
             state.len(),
             message.len(),
@@ -344,6 +350,7 @@ impl CampaignFile {
                 energy_growth: growth[v],
                 energy_loss: loss[v],
                 time_error_estimate: tee[v],
+                time_error_before_first_lock: tee_lock[v],
                 warnings: warnings[v].clone(),
             });
         }

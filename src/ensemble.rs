@@ -405,6 +405,9 @@ pub struct Outcome {
     pub energy_loss: Option<f64>,
     /// estimated relative time-discretisation error (see `RunStats::time_error_estimate`)
     pub time_error_estimate: Option<f64>,
+    /// the same just before the first hinge lock (see
+    /// `RunStats::time_error_before_first_lock`; None without one)
+    pub time_error_before_first_lock: Option<f64>,
     /// warnings about the variant's numbers, each naming its likely cause (energy
     /// balance, time error, `first_bending_hz: <kind>: ...` from `--frequency`, see
     /// crate::frequency)
@@ -823,6 +826,9 @@ fn run_core(
                 energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
                 energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
                 time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
+                time_error_before_first_lock: stats
+                    .time_error_before_first_lock
+                    .unwrap_or(f64::NAN),
                 warnings: warnings.join("\n"),
             };
             let mut r = Ok(());
@@ -865,6 +871,7 @@ fn run_core(
             energy_growth: stats.energy_growth,
             energy_loss: stats.energy_loss,
             time_error_estimate: stats.time_error_estimate,
+            time_error_before_first_lock: stats.time_error_before_first_lock,
             warnings,
             history: keep_history.then_some(hist),
             panicked: panicked.is_some(),
@@ -1024,6 +1031,7 @@ fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool) -> Outcome 
         energy_growth: None,
         energy_loss: None,
         time_error_estimate: None,
+        time_error_before_first_lock: None,
         warnings: Vec::new(),
         history: keep_history.then(|| dynamics::History {
             t: Vec::new(),

@@ -775,3 +775,64 @@ fn a_time_error_after_a_hinge_lock_names_the_lock_as_its_likely_cause() {
         warnings(&early)
     );
 }
+
+#[test]
+fn a_sweep_reports_each_variants_estimate_before_its_first_lock_in_json_and_hdf5() {
+    // A campaign is read as a table, so the figure `run --json` gives beside a lock
+    // warning (above) must reach it too: per variant in `sweep --json` and in
+    // /status/time_error_before_first_lock, each bit-identical to the variant run alone;
+    // null (NaN in the file) where nothing locks.
+    let dir = std::env::temp_dir().join(format!("latdyn-lock-sweep-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sweep = |model: &str, vary: &str, file: &str| -> (Value, Vec<f64>) {
+        let path = dir.join(file);
+        let _ = std::fs::remove_file(&path);
+        let out = latdyn(&[
+            "sweep",
+            model,
+            "--vary",
+            vary,
+            "-o",
+            path.to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let f = rust_hdf5::H5File::open(&path).unwrap();
+        let col = f
+            .dataset("status/time_error_before_first_lock")
+            .unwrap()
+            .read_raw::<f64>()
+            .unwrap();
+        (v, col)
+    };
+    let (v, col) = sweep("models/minimast_bay.toml", "T=0.9:1.1:2", "locks.h5");
+    let variants = v["variants"].as_array().unwrap();
+    assert_eq!((variants.len(), col.len()), (2, 2));
+    for (k, var) in variants.iter().enumerate() {
+        let t = var["parameters"]["T"].as_f64().unwrap();
+        let alone = run_json(&["models/minimast_bay.toml", "--set", &format!("T={t}")]);
+        let before = var["time_error_before_first_lock"].as_f64().unwrap();
+        assert_eq!(
+            before.to_bits(),
+            alone["time_error_before_first_lock"]
+                .as_f64()
+                .unwrap()
+                .to_bits(),
+            "T = {t}"
+        );
+        assert_eq!(col[k].to_bits(), before.to_bits(), "T = {t}");
+        // the whole run's estimate is at its cap after the lock, the span before it is not
+        assert!(before > 0.0 && before < var["time_error_estimate"].as_f64().unwrap());
+    }
+    let (v, col) = sweep("models/pendulum.toml", "theta0=0.1:0.2:2", "no_locks.h5");
+    for var in v["variants"].as_array().unwrap() {
+        assert!(var["time_error_before_first_lock"].is_null(), "{var}");
+    }
+    assert!(col.iter().all(|x| x.is_nan()), "{col:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -237,8 +237,9 @@ fn sigint_leaves_a_valid_file_marked_interrupted() {
 
 #[test]
 fn sweep_flags_the_variants_whose_energy_balance_grew_and_only_those() {
-    // spin-up beam, 3 elements: ρ∞ = 1 at dt = 1/60 s grows by 1.07 % of its energy scale
-    // (no dissipation to hold back the drift; tests/spinup.rs), ρ∞ = 0.6 at the same step
+    // spin-up beam, 3 elements: ρ∞ = 1 at dt = 1/60 s grows by 0.30 % of its energy scale
+    // (1.07 % where a·b + c rounds twice: the unstable run amplifies round-off, so the
+    // bound is the flag's limit, 1e-3; tests/spinup.rs), ρ∞ = 0.6 at the same step
     // does not (0); at dt = 0.01 s ρ∞ = 0.6 neither grows nor loses more than 1 %. A
     // campaign must say which variant it was, not bury it in a table.
     let bin = env!("CARGO_BIN_EXE_latdyn");
@@ -267,7 +268,7 @@ fn sweep_flags_the_variants_whose_energy_balance_grew_and_only_those() {
     let unstable = &vs[1];
     assert_eq!(unstable["parameters"]["rho_inf"], 1.0);
     assert_eq!(unstable["status"], "completed");
-    assert!(unstable["energy_growth"].as_f64().unwrap() > 5e-3);
+    assert!(unstable["energy_growth"].as_f64().unwrap() > 1e-3);
     assert!(unstable["warnings"][0]
         .as_str()
         .unwrap()

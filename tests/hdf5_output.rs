@@ -101,6 +101,7 @@ fn write_campaign(path: &Path) {
             energy_growth: 2e-7,
             energy_loss: 4e-4,
             time_error_estimate: 3e-4,
+            time_error_before_first_lock: 2e-4,
             warnings: String::new(),
         },
     )
@@ -118,6 +119,7 @@ fn write_campaign(path: &Path) {
             energy_growth: f64::NAN,
             energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
+            time_error_before_first_lock: f64::NAN,
             warnings: "first line\nsecond line".into(),
         },
     )
@@ -204,6 +206,10 @@ fn campaign_round_trip_rust() {
     assert!(el[0] == 4e-4 && el[1].is_nan(), "{el:?}");
     let te = st("time_error_estimate").read_raw::<f64>().unwrap();
     assert!(te[0] == 3e-4 && te[1].is_nan(), "{te:?}");
+    let tl = st("time_error_before_first_lock")
+        .read_raw::<f64>()
+        .unwrap();
+    assert!(tl[0] == 2e-4 && tl[1].is_nan(), "{tl:?}");
     assert_eq!(
         st("warnings").read_strings().unwrap(),
         ["", "first line\nsecond line"]

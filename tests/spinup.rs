@@ -91,10 +91,15 @@ fn modified_newton_converges_to_the_full_newton_solution() {
 fn an_unstable_run_is_flagged_by_its_energy_balance_and_a_stable_one_is_not() {
     // Generalized-α with ρ∞ ≤ 1 only dissipates, so kinetic + strain − driver work must
     // not grow. With ρ∞ = 1 (no high-frequency dissipation), 3 elements and dt = 1/60 s
-    // the spin-up's balance grows by 1.07 % of its scale (measured; 0.80 % at dt = 0.025)
-    // and its time-error estimate reads the cap; ρ∞ = 0.6 at dt = 0.01 s shows no growth
-    // at all (0 measured) and loses 0.2 %. Limits 1e-3 (RunStats::ENERGY_GROWTH_LIMIT) and
-    // 1e-2 (ENERGY_LOSS_LIMIT: ρ∞ = 0.6 at dt = 0.05 s loses 4 %, flagged, rightly).
+    // the spin-up's balance grows and its time-error estimate reads the cap; ρ∞ = 0.6 at
+    // dt = 0.01 s shows no growth at all (0 measured) and loses 0.2 %. Limits 1e-3
+    // (RunStats::ENERGY_GROWTH_LIMIT) and 1e-2 (ENERGY_LOSS_LIMIT: ρ∞ = 0.6 at dt = 0.05 s
+    // loses 4 %, flagged, rightly). How much it grows depends on the rounding: the unstable
+    // run amplifies round-off (builds that round a·b + c once or twice agree to 3e-9 until
+    // t = 10 s and part by t = 14 s): it ends 1.07 % up with two roundings (0.80 % at
+    // dt = 0.025) and 0.30 % up with session 24's fused multiply-adds (0.48 % with a first
+    // choice of them). Its size is chaos; that it grows is not, so the bound is the flag's
+    // own limit.
     let run_with = |rho: f64, dt: f64| {
         let sets = [("elements", 3.0), ("dt", dt), ("rho_inf", rho)];
         let m = shipped("spinup_beam.toml", &sets);
@@ -108,7 +113,11 @@ fn an_unstable_run_is_flagged_by_its_energy_balance_and_a_stable_one_is_not() {
         "energy growth: ρ∞ 1 {:?}, ρ∞ 0.6 {:?}",
         bad.energy_growth, good.energy_growth
     );
-    assert!(bad.energy_growth.unwrap() > 5e-3, "{:?}", bad.energy_growth);
+    assert!(
+        bad.energy_growth.unwrap() > latdyn::solver::dynamics::RunStats::ENERGY_GROWTH_LIMIT,
+        "{:?}",
+        bad.energy_growth
+    );
     assert!(bad.warnings()[0].contains("unstable"));
     assert!(
         good.energy_growth.unwrap() < 1e-6,

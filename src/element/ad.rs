@@ -24,6 +24,10 @@ pub trait Real:
     type Base: Lane;
     /// `v` in every lane, no derivative
     fn cst(v: f64) -> Self;
+    /// `self · a + b`, rounded once where the build has FMA (x86-64-v3), else twice: every
+    /// number type of one build rounds it the same way, so lanes, duals and jets keep the
+    /// bits of the plain `f64` evaluation.
+    fn madd(self, a: Self, b: Self) -> Self;
     /// `b` as this scalar, no derivative
     fn lift(b: Self::Base) -> Self;
     fn sqrt(self) -> Self;
@@ -51,6 +55,17 @@ impl Real for f64 {
         b
     }
     #[inline(always)]
+    fn madd(self, a: f64, b: f64) -> f64 {
+        #[cfg(target_feature = "fma")]
+        {
+            f64::mul_add(self, a, b)
+        }
+        #[cfg(not(target_feature = "fma"))]
+        {
+            self * a + b
+        }
+    }
+    #[inline(always)]
     fn sqrt(self) -> Self {
         f64::sqrt(self)
     }
@@ -75,6 +90,18 @@ impl Real for F4 {
     #[inline(always)]
     fn lift(b: F4) -> Self {
         b
+    }
+    #[inline(always)]
+    fn madd(self, a: F4, b: F4) -> F4 {
+        // wide fuses exactly when AVX and FMA are both enabled; FMA implies AVX on x86
+        #[cfg(target_feature = "fma")]
+        {
+            F4::mul_add(self, a, b)
+        }
+        #[cfg(not(target_feature = "fma"))]
+        {
+            self * a + b
+        }
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -142,9 +169,10 @@ impl Mul for HyperDual {
     fn mul(self, o: Self) -> Self {
         HyperDual::new(
             self.v * o.v,
-            self.v * o.a + self.a * o.v,
-            self.v * o.b + self.b * o.v,
-            self.v * o.ab + self.a * o.b + self.b * o.a + self.ab * o.v,
+            self.v.madd(o.a, self.a * o.v),
+            self.v.madd(o.b, self.b * o.v),
+            self.ab
+                .madd(o.v, self.v.madd(o.ab, self.a * o.b) + self.b * o.a),
         )
     }
 }
@@ -168,6 +196,16 @@ impl Real for HyperDual {
         HyperDual::new(b, 0.0, 0.0, 0.0)
     }
     #[inline]
+    fn madd(self, a: Self, b: Self) -> Self {
+        HyperDual::new(
+            self.v.madd(a.v, b.v),
+            self.v.madd(a.a, self.a.madd(a.v, b.a)),
+            self.v.madd(a.b, self.b.madd(a.v, b.b)),
+            self.ab
+                .madd(a.v, self.v.madd(a.ab, self.a * a.b) + self.b * a.a + b.ab),
+        )
+    }
+    #[inline]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
         self.lift(s, 0.5 / s, -0.25 / (s * self.v))
@@ -175,10 +213,9 @@ impl Real for HyperDual {
 }
 
 /// A second-order jet v + d ε + dd ε²/2 along one direction: the [`HyperDual`] along
-/// (u, u) without the duplicate lane. Each operation forms the same products in the same
-/// order as [`HyperDual`]'s (the mixed products a·b and b·a are one product here, added
-/// twice), so `dd` is bit-identical to the hyper-dual `ab` along (u, u) at about two
-/// thirds of its multiplications. Generic over the lanes ([`Lane`]).
+/// (u, u) without the duplicate lane. Each operation does [`HyperDual`]'s operations in
+/// the same order with a = b = d, so `dd` is bit-identical to the hyper-dual `ab` along
+/// (u, u) at about two thirds of its arithmetic. Generic over the lanes ([`Lane`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Jet2<T = f64> {
     pub v: T,
@@ -227,11 +264,12 @@ impl<T: Lane> Mul for Jet2<T> {
     type Output = Self;
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
+        // the hyper-dual product's operations along (u, u), in its order
         let cross = self.d * o.d;
         Jet2::new(
             self.v * o.v,
-            self.v * o.d + self.d * o.v,
-            self.v * o.dd + cross + cross + self.dd * o.v,
+            self.v.madd(o.d, self.d * o.v),
+            self.dd.madd(o.v, self.v.madd(o.dd, cross) + cross),
         )
     }
 }
@@ -253,6 +291,15 @@ impl<T: Lane> Real for Jet2<T> {
     #[inline(always)]
     fn lift(b: T) -> Self {
         Jet2::new(b, T::cst(0.0), T::cst(0.0))
+    }
+    #[inline(always)]
+    fn madd(self, a: Self, b: Self) -> Self {
+        let cross = self.d * a.d;
+        Jet2::new(
+            self.v.madd(a.v, b.v),
+            self.v.madd(a.d, self.d.madd(a.v, b.d)),
+            self.dd.madd(a.v, self.v.madd(a.dd, cross) + cross + b.dd),
+        )
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -341,7 +388,7 @@ impl<T: Lane> Mul for Dual<T> {
     type Output = Self;
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
-        Dual::new(self.v * o.v, self.v * o.d + self.d * o.v)
+        Dual::new(self.v * o.v, self.v.madd(o.d, self.d * o.v))
     }
 }
 impl<T: Lane> Div for Dual<T> {
@@ -363,6 +410,13 @@ impl<T: Lane> Real for Dual<T> {
     #[inline(always)]
     fn lift(b: T) -> Self {
         Dual::new(b, T::cst(0.0))
+    }
+    #[inline(always)]
+    fn madd(self, a: Self, b: Self) -> Self {
+        Dual::new(
+            self.v.madd(a.v, b.v),
+            self.v.madd(a.d, self.d.madd(a.v, b.d)),
+        )
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -418,7 +472,7 @@ impl<const N: usize> Mul for DualVec<N> {
     fn mul(self, o: Self) -> Self {
         DualVec::new(
             self.v * o.v,
-            std::array::from_fn(|k| self.v * o.d[k] + self.d[k] * o.v),
+            std::array::from_fn(|k| self.v.madd(o.d[k], self.d[k] * o.v)),
         )
     }
 }
@@ -444,6 +498,13 @@ impl<const N: usize> Real for DualVec<N> {
     #[inline]
     fn lift(b: f64) -> Self {
         DualVec::new(b, [0.0; N])
+    }
+    #[inline]
+    fn madd(self, a: Self, b: Self) -> Self {
+        DualVec::new(
+            self.v.madd(a.v, b.v),
+            std::array::from_fn(|k| self.v.madd(a.d[k], self.d[k].madd(a.v, b.d[k]))),
+        )
     }
     #[inline]
     fn sqrt(self) -> Self {

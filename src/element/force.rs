@@ -453,7 +453,7 @@ pub(super) fn tangent_into<R: Real>(
     // K row by row, the terms in the order above
     let add = |row: &mut [R; NDOF], a: R, b: &[R; NDOF]| {
         for (x, y) in row.iter_mut().zip(b) {
-            *x = *x + a * *y;
+            *x = a.madd(*y, *x);
         }
     };
     for (r, kr) in k.iter_mut().enumerate() {

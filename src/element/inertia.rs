@@ -129,7 +129,7 @@ fn mass_into<B: Lane>(rows: &[[B; NDOF]; 36], wq: &[B; 36], m: &mut [[B; NDOF]; 
         for (r, wr) in rows.iter().zip(wq) {
             let a = *wr * r[j];
             for (x, y) in acc.iter_mut().zip(r) {
-                *x = *x + a * *y;
+                *x = a.madd(*y, *x);
             }
         }
         *mj = acc;
@@ -266,7 +266,7 @@ pub(super) struct FieldMaps<'g, B = f64> {
 fn dot12<B: Lane>(a: &[B; NDOF], b: &[B; NDOF]) -> B {
     a.iter()
         .zip(b)
-        .fold(B::cst(-0.0), |acc, (x, y)| acc + *x * *y)
+        .fold(B::cst(-0.0), |acc, (x, y)| x.madd(*y, acc))
 }
 
 /// Shape-function values at Gauss point ξ: n1, n2 (Hermite, bending), d1, d2 (their
@@ -401,7 +401,7 @@ impl<'g, B: Lane> FieldMaps<'g, B> {
             mth[0] * g.dtheta[0][j]
                 + mth[1] * g.dtheta[1][j]
                 + mth[2] * g.dtheta[2][j]
-                + (0..6).fold(B::cst(-0.0), |acc, k| acc + cph[k] * g.dphi[k][j])
+                + (0..6).fold(B::cst(-0.0), |acc, k| cph[k].madd(g.dphi[k][j], acc))
                 + cl * g.dlen[j]
         });
         for i in 0..3 {
@@ -554,7 +554,7 @@ pub fn mass_and_rates<B: Lane>(
             for ((row, rowd), wr) in r.g.iter().zip(&r.gdot).zip(&r.w) {
                 let a = B::cst(2.0) * *wr * row[j];
                 for (x, y) in acc_c.iter_mut().zip(rowd) {
-                    *x = *x + a * *y;
+                    *x = a.madd(*y, *x);
                 }
             }
             *cj = acc_c;
@@ -566,7 +566,7 @@ pub fn mass_and_rates<B: Lane>(
             let sk = [[z, -w, y], [w, z, -x], [-y, x, z]];
             for (j, cj) in c.iter_mut().enumerate() {
                 for k in 0..3 {
-                    let t = (0..3).fold(B::cst(-0.0), |a, i| a + m[j][o + i] * sk[i][k]);
+                    let t = (0..3).fold(B::cst(-0.0), |a, i| m[j][o + i].madd(sk[i][k], a));
                     cj[o + k] = cj[o + k] + t;
                 }
             }

@@ -63,6 +63,7 @@ pub const WALL_S: &str = "status/wall_s";
 pub const ENERGY_GROWTH: &str = "status/energy_growth";
 pub const ENERGY_LOSS: &str = "status/energy_loss";
 pub const TIME_ERROR_ESTIMATE: &str = "status/time_error_estimate";
+pub const TIME_ERROR_BEFORE_FIRST_LOCK: &str = "status/time_error_before_first_lock";
 pub const WARNINGS: &str = "status/warnings";
 pub const GLOBAL_INDEX: &str = "status/global_index";
 pub const CAMPAIGN: &str = "campaign";
@@ -169,6 +170,11 @@ impl Reader {
                     .to_string()
             })
             .map_err(|e| format!("reading /{name}: {e}"))
+    }
+
+    /// Whether the dataset exists.
+    pub fn has_dataset(&self, name: &str) -> bool {
+        self.file.dataset(name).is_ok()
     }
 
     /// Whether the group exists.

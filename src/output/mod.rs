@@ -39,6 +39,9 @@
 //! /status/time_error_estimate float64 [V]: estimated time-discretisation error of the
 //!                          sensors relative to their range, largest over the sensors
 //!                          (README "Accuracy"), NaN where not run
+//! /status/time_error_before_first_lock float64 [V]: the same just before the variant's
+//!                          first hinge lock, NaN without a lock (files written before
+//!                          session 24 lack it; read as NaN)
 //! /status/warnings         str [V]: the variant's warnings, one per line (empty: none)
 //! /status/global_index     int64 [V]: index of each variant in the whole campaign
 //!                          (differs from the row index when the campaign is sharded)
@@ -262,6 +265,8 @@ pub struct VariantStatus {
     pub energy_loss: f64,
     /// estimated relative time-discretisation error, NaN where not run
     pub time_error_estimate: f64,
+    /// the same just before the first hinge lock, NaN without a lock
+    pub time_error_before_first_lock: f64,
     /// warnings about the variant's numbers, one per line
     pub warnings: String,
 }
@@ -279,6 +284,7 @@ impl Default for VariantStatus {
             energy_growth: f64::NAN,
             energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
+            time_error_before_first_lock: f64::NAN,
             warnings: String::new(),
         }
     }
@@ -305,6 +311,7 @@ impl VariantStatus {
             energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
             energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
             time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
+            time_error_before_first_lock: stats.time_error_before_first_lock.unwrap_or(f64::NAN),
             warnings,
         }
     }
@@ -1359,6 +1366,13 @@ impl CampaignWriter {
             &col(|s| s.time_error_estimate),
         )
         .map_err(h5(&slash(layout::TIME_ERROR_ESTIMATE)))?;
+        write_f64(
+            &st,
+            leaf(layout::TIME_ERROR_BEFORE_FIRST_LOCK),
+            &[nv],
+            &col(|s| s.time_error_before_first_lock),
+        )
+        .map_err(h5(&slash(layout::TIME_ERROR_BEFORE_FIRST_LOCK)))?;
         let warnings: Vec<&str> = self.status.iter().map(|s| s.warnings.as_str()).collect();
         write_strings(&st, leaf(layout::WARNINGS), &warnings)
             .map_err(h5(&slash(layout::WARNINGS)))?;

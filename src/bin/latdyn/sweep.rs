@@ -434,6 +434,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "energy_growth": o.energy_growth,
                     "energy_loss": o.energy_loss,
                     "time_error_estimate": o.time_error_estimate,
+                    "time_error_before_first_lock": o.time_error_before_first_lock,
                     "warnings": o.warnings,
                     "sensors": sensors,
                     "derived": derived,
