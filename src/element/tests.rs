@@ -879,3 +879,66 @@ fn a_batch_fills_lanes_across_requests_and_each_request_keeps_its_own_bits() {
         }
     }
 }
+
+#[test]
+fn every_number_types_multiply_add_is_its_product_plus_the_addend_rounded_as_f64_rounds_it() {
+    // `Real::madd` is how the stage fuses its multiply-add streams; the lanes, duals and
+    // jets must round it as the plain f64 evaluation does (values of a dual or a lane
+    // bit-identical to f64's `madd`), a jet's second derivative must keep the hyper-dual
+    // one's bits along (u, u) (S comes from jets, its reference from hyper-duals), and each
+    // part must be the product rule's a·b + c to round-off.
+    use super::ad::{Dual, DualVec, HyperDual, Jet2, Real, F4};
+    let mut rng = Lcg(24);
+    // to round-off of the terms' sizes (a sum that cancels keeps their absolute error)
+    let close = |x: f64, terms: &[f64]| {
+        let y: f64 = terms.iter().sum();
+        (x - y).abs() <= 4.0 * f64::EPSILON * terms.iter().map(|t| t.abs()).sum::<f64>()
+    };
+    for _ in 0..200 {
+        let r: [f64; 9] = std::array::from_fn(|_| 10.0 * rng.next());
+        let f = r[0].madd(r[1], r[2]);
+        assert!(close(f, &[r[0] * r[1], r[2]]));
+        let lanes = F4::splat(r[0]).madd(F4::splat(r[1]), F4::splat(r[2]));
+        assert!(lanes.to_array().iter().all(|x| x.to_bits() == f.to_bits()));
+
+        let (a, b, c) = (
+            Dual::new(r[0], r[3]),
+            Dual::new(r[1], r[4]),
+            Dual::new(r[2], r[5]),
+        );
+        let m = a.madd(b, c);
+        assert_eq!(m.v.to_bits(), f.to_bits());
+        assert!(close(m.d, &[r[0] * r[4], r[3] * r[1], r[5]]));
+        let dv = DualVec::<1>::new(r[0], [r[3]])
+            .madd(DualVec::new(r[1], [r[4]]), DualVec::new(r[2], [r[5]]));
+        assert_eq!(
+            (dv.v.to_bits(), dv.d[0].to_bits()),
+            (f.to_bits(), m.d.to_bits())
+        );
+
+        let (ja, jb, jc) = (
+            Jet2::new(r[0], r[3], r[6]),
+            Jet2::new(r[1], r[4], r[7]),
+            Jet2::new(r[2], r[5], r[8]),
+        );
+        let h = |j: Jet2| HyperDual::new(j.v, j.d, j.d, j.dd);
+        let jm = ja.madd(jb, jc);
+        let hm = h(ja).madd(h(jb), h(jc));
+        assert_eq!(
+            [jm.v, jm.d, jm.d, jm.dd].map(f64::to_bits),
+            [hm.v, hm.a, hm.b, hm.ab].map(f64::to_bits)
+        );
+        assert_eq!(
+            (jm.v.to_bits(), jm.d.to_bits()),
+            (f.to_bits(), m.d.to_bits())
+        );
+        let second = [r[0] * r[7], 2.0 * r[3] * r[4], r[6] * r[1], r[8]];
+        assert!(close(jm.dd, &second), "{} vs {second:?}", jm.dd);
+        // and the plain products keep the same agreement
+        let (jp, hp) = (ja * jb, h(ja) * h(jb));
+        assert_eq!(
+            [jp.v, jp.d, jp.d, jp.dd].map(f64::to_bits),
+            [hp.v, hp.a, hp.b, hp.ab].map(f64::to_bits)
+        );
+    }
+}
