@@ -816,21 +816,14 @@ fn run_core(
         let t_out = Instant::now();
         if let Some(w) = &writer {
             let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
-            let st = VariantStatus {
+            let st = VariantStatus::of_run(
                 state,
-                message: message.clone(),
+                message.clone(),
                 t_fail,
-                steps: stats.steps as u64,
-                rejected_steps: stats.rejected_steps as u64,
-                wall_s: wall,
-                energy_growth: stats.energy_growth.unwrap_or(f64::NAN),
-                energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
-                time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
-                time_error_before_first_lock: stats
-                    .time_error_before_first_lock
-                    .unwrap_or(f64::NAN),
-                warnings: warnings.join("\n"),
-            };
+                &stats,
+                wall,
+                warnings.join("\n"),
+            );
             let mut r = Ok(());
             for ti in 0..hist.t.len() {
                 let vals: Vec<Vec<f64>> = hist.values.iter().map(|s| s[ti].clone()).collect();

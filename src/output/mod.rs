@@ -1340,39 +1340,21 @@ impl CampaignWriter {
         let messages: Vec<&str> = self.status.iter().map(|s| s.message.as_str()).collect();
         write_strings(&st, leaf(layout::MESSAGE), &messages)
             .map_err(h5(&slash(layout::MESSAGE)))?;
-        let col = |f: fn(&VariantStatus) -> f64| self.status.iter().map(f).collect::<Vec<_>>();
-        write_f64(&st, leaf(layout::T_FAIL), &[nv], &col(|s| s.t_fail))
-            .map_err(h5(&slash(layout::T_FAIL)))?;
-        write_f64(&st, leaf(layout::WALL_S), &[nv], &col(|s| s.wall_s))
-            .map_err(h5(&slash(layout::WALL_S)))?;
-        write_f64(
-            &st,
-            leaf(layout::ENERGY_GROWTH),
-            &[nv],
-            &col(|s| s.energy_growth),
-        )
-        .map_err(h5(&slash(layout::ENERGY_GROWTH)))?;
-        write_f64(
-            &st,
-            leaf(layout::ENERGY_LOSS),
-            &[nv],
-            &col(|s| s.energy_loss),
-        )
-        .map_err(h5(&slash(layout::ENERGY_LOSS)))?;
-        write_f64(
-            &st,
-            "time_error_estimate",
-            &[nv],
-            &col(|s| s.time_error_estimate),
-        )
-        .map_err(h5(&slash(layout::TIME_ERROR_ESTIMATE)))?;
-        write_f64(
-            &st,
-            leaf(layout::TIME_ERROR_BEFORE_FIRST_LOCK),
-            &[nv],
-            &col(|s| s.time_error_before_first_lock),
-        )
-        .map_err(h5(&slash(layout::TIME_ERROR_BEFORE_FIRST_LOCK)))?;
+        type Column = fn(&VariantStatus) -> f64;
+        let f64_columns: [(&str, Column); 6] = [
+            (layout::T_FAIL, |s| s.t_fail),
+            (layout::WALL_S, |s| s.wall_s),
+            (layout::ENERGY_GROWTH, |s| s.energy_growth),
+            (layout::ENERGY_LOSS, |s| s.energy_loss),
+            (layout::TIME_ERROR_ESTIMATE, |s| s.time_error_estimate),
+            (layout::TIME_ERROR_BEFORE_FIRST_LOCK, |s| {
+                s.time_error_before_first_lock
+            }),
+        ];
+        for (name, f) in f64_columns {
+            let values: Vec<f64> = self.status.iter().map(f).collect();
+            write_f64(&st, leaf(name), &[nv], &values).map_err(h5(&slash(name)))?;
+        }
         let warnings: Vec<&str> = self.status.iter().map(|s| s.warnings.as_str()).collect();
         write_strings(&st, leaf(layout::WARNINGS), &warnings)
             .map_err(h5(&slash(layout::WARNINGS)))?;
