@@ -843,11 +843,7 @@ fn a_sweep_reports_each_variants_estimate_before_its_first_lock_in_json_and_hdf5
 /// With the run's time-error estimate.
 fn spin_up_with_a_window(coarse: f64, fine: f64, accuracy: bool) -> (Vec<f64>, f64) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/spinup_beam.toml");
-    let sets: Vec<(String, f64)> = [("dt", fine)]
-        .iter()
-        .map(|(k, v)| (k.to_string(), *v))
-        .collect();
-    let mut model = latdyn::model::compile::load(&path, &sets).unwrap();
+    let mut model = latdyn::model::compile::load(&path, &[("dt".to_string(), fine)]).unwrap();
     model.solver.accuracy = accuracy.then_some(0.1);
     let k = model.sensor_index("tip_deflection").unwrap();
     let mut it = latdyn::solver::dynamics::Integrator::new(&model).unwrap();

@@ -499,12 +499,13 @@ pub struct Integrator<'m> {
     // scratch reused by every step, so the time loop does not allocate
     start: State,
     trial: State,
-    /// the auxiliary acceleration at the step's start: as the last step left it
-    /// (`aux_start`), and moved to this step's size (`aux0`, see `resize_step`)
+    /// the auxiliary acceleration at the step's start, moved to this step's size (see
+    /// `resize_step`); where it was moved, `aux_start` holds it as the last step left it
+    /// and `v_move` the velocity's moves per dof (`resized`)
     aux0: Vec<f64>,
     aux_start: Vec<f64>,
-    /// per dof, the velocity's move to this step's size (see `resize_step`)
     v_move: Vec<f64>,
+    resized: bool,
     acc: Vec<f64>,
     incr: Vec<f64>,
     prev_q: Vec<f64>,
@@ -590,6 +591,7 @@ impl<'m> Integrator<'m> {
             aux0: vec![0.0; nd],
             aux_start: vec![0.0; nd],
             v_move: vec![0.0; nd],
+            resized: false,
             acc: vec![0.0; nd],
             prev_q: vec![0.0; nd],
             prev_a: vec![0.0; nd],
@@ -1027,7 +1029,8 @@ impl<'m> Integrator<'m> {
     }
 
     /// Move the step-start auxiliary acceleration and velocity to the step's size h (see
-    /// [`Self::resize_coefficients`]); the velocity's moves are kept in `v_move`. The
+    /// [`Self::resize_coefficients`]), keeping the unmoved auxiliary acceleration in
+    /// `aux_start` and the velocity's moves in `v_move`; `resized` says whether. The
     /// expansion holds for motions slow against the step (ωh ≪ 1). The auxiliary
     /// acceleration's move is at most |½ − γ| |h/h_prev − 1| of its last change whatever
     /// the motion, but the velocity's grows as c (ωh)² of the velocity: 0.2 % on the
@@ -1036,14 +1039,17 @@ impl<'m> Integrator<'m> {
     /// to `RESIZE_MOVE_MAX` of the velocity (for the rotor's components it is c Ω² Δ(h²)
     /// of each, so nothing is cut where a component passes zero).
     fn resize_step(&mut self, h: f64) {
-        self.v_move.iter_mut().for_each(|x| *x = 0.0);
-        let Some(c) = self.resize_coefficients(h) else {
+        let c = self.resize_coefficients(h);
+        self.resized = c.is_some();
+        let Some(c) = c else {
             return;
         };
+        self.aux_start.clone_from(&self.aux0);
         let model = self.model;
         let cut =
             |m: f64, of: f64| m.clamp(-RESIZE_MOVE_MAX * of.abs(), RESIZE_MOVE_MAX * of.abs());
         for (d, dof) in model.dofs.iter().enumerate() {
+            self.v_move[d] = 0.0;
             if dof.eq.is_some() && self.start.is_active(model, d) {
                 let change = self.te.da_prev[d];
                 self.aux0[d] += c.daux * change;
@@ -1059,7 +1065,6 @@ impl<'m> Integrator<'m> {
         let model = self.model;
         let p = self.p;
         self.start.clone_from(&self.s);
-        self.aux_start.clone_from(&self.aux);
         self.aux0.clone_from(&self.aux);
         self.resize_step(h);
         let Integrator {
@@ -1199,7 +1204,13 @@ impl<'m> Integrator<'m> {
         }
         if model.solver.accuracy.is_some() {
             if let Some(fraction) = self.lock_crossing() {
-                self.aux.clone_from(&self.aux_start);
+                // the step-start value, before any move to this step's size
+                let start = if self.resized {
+                    &self.aux_start
+                } else {
+                    &self.aux0
+                };
+                self.aux.clone_from(start);
                 return Ok(StepResult::PastLock { fraction });
             }
         }
@@ -1211,7 +1222,7 @@ impl<'m> Integrator<'m> {
         self.lock_retries = 0;
         // the velocity moved to this step's size moved the numerical solution, and so
         // its error
-        if self.resize_coefficients(h).is_some() {
+        if self.resized {
             for (d, dof) in model.dofs.iter().enumerate() {
                 if let Some(k) = dof.eq {
                     self.te.gv[k] += self.v_move[d];
