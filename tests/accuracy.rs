@@ -402,16 +402,17 @@ fn accuracy_target_is_met_from_a_step_twenty_times_too_large() {
 }
 
 #[test]
-fn accuracy_on_the_spin_up_meets_the_target_at_most_twice_the_cost_of_the_cheapest_fixed_step() {
-    // Issue 14's cost bar is 1.5× the cheapest fixed step of the halving ladder that meets
-    // the same error; on the spin-up beam it is NOT met since session 17 (measured 2.0×):
-    // spread evenly over the 0.05 s output interval, dt = 0.02 (steps of 1/60 s) became
-    // good enough (before, 0.02, 0.02, 0.01 s was 1.7e-2 off and 0.01 was the cheapest,
-    // 1.2× of it). `--accuracy` cannot get there for less: its first run, from dt = 0.04
-    // (steps of 0.025 s), already costs 0.67 of the cheapest and reads 1.8e-2; the second
-    // aims at 0.7 of the target and lands on 0.0125 s. This test keeps the cheapest fixed
-    // step measured, not assumed (t_end = 12, against dt = 0.00125), and the cost under
-    // 2×: a regression guard at the measured figure, not the issue's bar.
+fn accuracy_on_the_spin_up_meets_the_target_within_one_and_a_half_times_the_cheapest_fixed_step() {
+    // Issue 14's cost bar: 1.5× the cheapest fixed step of the halving ladder that meets
+    // the same error. Spread evenly over the 0.05 s output interval, dt = 0.02 (steps of
+    // 1/60 s) meets it; `--accuracy` from dt = 0.04 (steps of 0.025 s) reads 1.8e-2 and
+    // aims the second run at 0.7 of the target, which lands on 0.0125 s. Until session 26
+    // that second run started from t = 0 (2.0× the cheapest); it now resumes the first
+    // from the checkpoint where the error so far is within a quarter of the target
+    // (t = 6 s here), so the quiet start is not stepped again. Measured over these 12 s:
+    // 1.33×. (The shipped 20 s, in `latdyn bench --only accuracy`, 1.61×: the longer
+    // the steady rotation after the spin-up, the more of the run the fine step covers.)
+    // The cheapest fixed step is measured, not assumed (against dt = 0.00125).
     let ladder = ["0.04", "0.02", "0.01", "0.005"];
     let cheapest = ladder
         .iter()
@@ -444,8 +445,87 @@ fn accuracy_on_the_spin_up_meets_the_target_at_most_twice_the_cost_of_the_cheape
         "--accuracy 1e-2: {all} steps in all runs, {:.2}× the cheapest fixed ({cheapest})",
         all as f64 / cheapest as f64
     );
-    assert!(all <= 2 * cheapest, "{}", v["accuracy"]);
+    assert!(2 * all <= 3 * cheapest, "{}", v["accuracy"]);
     assert!(warnings(&v).is_empty(), "{:?}", warnings(&v));
+}
+
+#[test]
+fn a_resumed_run_repeats_no_step_before_its_checkpoint_and_adds_at_most_its_budget() {
+    // The second `--accuracy` run on the spin-up beam resumes the first (steps of
+    // 0.025 s) where the error so far is within a quarter of the target. So: its samples
+    // up to there are the first run's, bit for bit (the first run is what a looser
+    // target, met at once, returns); the steps it counts are its own after the
+    // checkpoint; and its true
+    // error exceeds that of a run at its step from t = 0 by at most that quarter
+    // (measured: 4.4e-3 against 3.1e-3 over these 12 s).
+    let target = 1e-2;
+    let v = run_json(&[
+        "models/spinup_beam.toml",
+        "--set",
+        "dt=0.04",
+        "--set",
+        "t_end=12",
+        "--accuracy",
+        "1e-2",
+    ]);
+    let hist = v["accuracy"]["history"].as_array().unwrap();
+    assert_eq!(hist.len(), 2, "{}", v["accuracy"]);
+    let from = hist[1]["from"].as_f64().unwrap();
+    assert!(from > 0.0 && from < 12.0, "{}", v["accuracy"]);
+    let h = hist[1]["dt"].as_f64().unwrap();
+    let coarse = run_json(&[
+        "models/spinup_beam.toml",
+        "--set",
+        "dt=0.04",
+        "--set",
+        "t_end=12",
+        "--accuracy",
+        "5e-2",
+    ]);
+    assert_eq!(coarse["accuracy"]["runs"], 1, "{}", coarse["accuracy"]);
+    for sensor in ["tip_deflection", "hub_torque"] {
+        let (a, b) = (&v["sensors"][sensor], &coarse["sensors"][sensor]);
+        let t = a["t"].as_array().unwrap();
+        let kept = t
+            .iter()
+            .take_while(|x| x.as_f64().unwrap() <= from + 1e-9)
+            .count();
+        assert!(kept > 1);
+        assert_eq!(
+            a["values"].as_array().unwrap()[..kept],
+            b["values"].as_array().unwrap()[..kept],
+            "{sensor} up to t = {from}"
+        );
+        assert_ne!(a["values"], b["values"], "{sensor} after t = {from}");
+    }
+    let own = hist[1]["steps"].as_u64().unwrap();
+    assert_eq!(own, ((12.0 - from) / h).round() as u64, "{}", v["accuracy"]);
+    assert_eq!(
+        v["accuracy"]["steps_all_runs"].as_u64().unwrap(),
+        hist[0]["steps"].as_u64().unwrap() + own
+    );
+    assert_eq!(
+        v["steps"].as_u64().unwrap(),
+        (from / 0.025).round() as u64 + own,
+        "the result's steps are the kept part's and its own"
+    );
+    let fine = run_json(&[
+        "models/spinup_beam.toml",
+        "--set",
+        &format!("dt={h}"),
+        "--set",
+        "t_end=12",
+    ]);
+    let truth = history_error(&v, spin_up_reference(), "tip_deflection");
+    let truth_fine = history_error(&fine, spin_up_reference(), "tip_deflection");
+    eprintln!("resumed at t = {from}: true {truth:.3e}; from t = 0 at {h}: {truth_fine:.3e}");
+    assert!(
+        truth <= truth_fine + 0.25 * target,
+        "{truth:.3e} {truth_fine:.3e}"
+    );
+    // the estimate still counts the kept part's error
+    let est = v["time_error_estimate"].as_f64().unwrap();
+    assert!(est >= truth && est <= 3.0 * truth, "{est:.3e} {truth:.3e}");
 }
 
 #[test]

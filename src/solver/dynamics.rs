@@ -191,6 +191,7 @@ const GLOBAL_ERROR_CAP: f64 = 2.0;
 /// the global error (rotations through the exponential map, i.e. measured in the Lie
 /// algebra), so each sensor sees the error in its own units; the largest deviation over
 /// the run is divided by the sensor's range over the run.
+#[derive(Clone)]
 struct TimeError {
     /// per sensor, per component: the largest |δy| of the global error so far
     acc: Vec<Vec<f64>>,
@@ -347,8 +348,9 @@ pub struct RunStats {
     pub accuracy_steps: usize,
     pub accuracy_newton_iterations: usize,
     pub accuracy_dt: Option<f64>,
-    /// With an accuracy target: each run made, in order: (step, estimate, steps)
-    pub accuracy_history: Vec<(f64, f64, usize)>,
+    /// With an accuracy target: each run made, in order: (step, estimate, steps, the
+    /// time it started from: 0, or where it resumed the run before it)
+    pub accuracy_history: Vec<(f64, f64, usize, f64)>,
     pub newton_iterations: usize,
     pub times: StageTimes,
     /// Largest growth of the energy balance (kinetic + strain + gravity energy − driver
@@ -538,6 +540,24 @@ enum StepResult {
     PastLock { fraction: f64 },
 }
 
+/// What an [`Integrator`] carries from step to step (its state, the error transport,
+/// the accounts of energy, loads and drives, the counters): enough to resume the run
+/// from there at another step size (`run_accuracy`).
+#[derive(Clone)]
+struct IntegState {
+    s: State,
+    aux: Vec<f64>,
+    stats: RunStats,
+    energies: Energies,
+    powers: [f64; 3],
+    load_impulse: Vec<(f64, f64, f64, f64)>,
+    drive_departure: Vec<(f64, f64, Option<DriveSample>)>,
+    prev_a: Vec<f64>,
+    prev_h: f64,
+    trend_smooth: bool,
+    te: TimeError,
+}
+
 impl<'m> Integrator<'m> {
     pub fn new(model: &'m Model) -> Result<Integrator<'m>, DynamicsError> {
         Self::with_context(model, &RunContext::default())
@@ -628,6 +648,41 @@ impl<'m> Integrator<'m> {
             }
         }
         Ok(it)
+    }
+
+    fn save(&self) -> IntegState {
+        IntegState {
+            s: self.s.clone(),
+            aux: self.aux.clone(),
+            stats: self.stats.clone(),
+            energies: self.energies,
+            powers: [self.driver_power, self.load_power, self.damping_power],
+            load_impulse: self.load_impulse.clone(),
+            drive_departure: self.drive_departure.clone(),
+            prev_a: self.prev_a.clone(),
+            prev_h: self.prev_h,
+            trend_smooth: self.trend_smooth,
+            te: self.te.clone(),
+        }
+    }
+
+    /// Continue from `st` (saved by a run of the same model at another step) with this
+    /// integrator's step. The first step is then a change of size, and is moved to it
+    /// as any other (`resize_step`).
+    fn restore(&mut self, st: &IntegState) {
+        self.s.clone_from(&st.s);
+        self.aux.clone_from(&st.aux);
+        self.stats = st.stats.clone();
+        self.energies = st.energies;
+        [self.driver_power, self.load_power, self.damping_power] = st.powers;
+        self.load_impulse.clone_from(&st.load_impulse);
+        self.drive_departure.clone_from(&st.drive_departure);
+        self.prev_a.clone_from(&st.prev_a);
+        self.prev_h = st.prev_h;
+        self.trend_smooth = st.trend_smooth;
+        self.te = st.te.clone();
+        self.lock_retries = 0;
+        self.h = self.model.solver.dt;
     }
 
     /// This step's local error, unfiltered, into `te.e` and `te.ev` (the coordinate and
@@ -1770,7 +1825,7 @@ pub(crate) async fn run_member(
 ) -> RunResult {
     match model.solver.accuracy {
         Some(tol) => run_accuracy(model, tol, ctx, slot, sizes, on_sample).await,
-        None => run_fixed(model, ctx, slot, sizes, on_sample).await,
+        None => run_fixed(model, ctx, slot, sizes, None, None, on_sample).await,
     }
 }
 
@@ -2084,30 +2139,63 @@ async fn run_accuracy(
     let mut last: Option<(f64, f64)> = None;
     let (mut runs, mut steps, mut newton) = (0usize, 0usize, 0usize);
     let mut history = Vec::new();
+    let n_out = output_times(&m).len();
+    let every = n_out.div_ceil(ACCURACY_CHECKPOINTS).max(1);
+    // the checkpoint (with the samples up to it) the next run resumes from, and the
+    // checkpoints of the last run
+    let mut resume: Option<(Checkpoint, History)> = None;
+    let mut kept: Vec<Checkpoint> = Vec::new();
+    let mut may_resume = true;
     let result = loop {
         m.solver.dt = h;
         m.solver.dt_max = m.solver.dt_max.max(h);
+        let mut keep = Checkpoints {
+            every,
+            list: match &resume {
+                Some((ck, _)) => kept.drain(..).filter(|c| c.samples <= ck.samples).collect(),
+                None => Vec::new(),
+            },
+        };
+        let from = resume.as_ref().map(|(ck, prefix)| (ck, prefix));
+        let (t_from, base_steps, base_newton) = from.map_or((0.0, 0, 0), |(ck, prefix)| {
+            (
+                prefix.t[ck.samples - 1],
+                ck.integ.stats.steps,
+                ck.integ.stats.newton_iterations,
+            )
+        });
         // boxed: each run is a member's run, awaited by this one
-        let r = Box::pin(run_fixed(&m, ctx, Arc::clone(&slot), sizes, |_, _| {})).await;
+        let r = Box::pin(run_fixed(
+            &m,
+            ctx,
+            Arc::clone(&slot),
+            sizes,
+            from,
+            Some(&mut keep),
+            |_, _| {},
+        ))
+        .await;
+        kept = keep.list;
+        let resumed = resume.take().is_some();
         runs += 1;
-        steps += r.1.steps;
-        newton += r.1.newton_iterations;
+        let run_steps = r.1.steps.saturating_sub(base_steps);
+        steps += run_steps;
+        newton += r.1.newton_iterations.saturating_sub(base_newton);
         // a load the steps miss drives a response they miss: its share counts as error
         let err =
             r.1.time_error_estimate
                 .unwrap_or(f64::INFINITY)
-                .max(r.1.load_impulse_error.unwrap_or(0.0))
-                // aliased loads: the estimate sees the false frequency's response
-                .max(
-                    r.1.load_sampling_error
-                        .filter(|e| *e > LOAD_SAMPLING_WARN)
-                        .unwrap_or(0.0),
-                )
-                .max(r.1.drive_rate_error.unwrap_or(0.0));
-        history.push((h, err, r.1.steps));
+                .max(load_and_drive_error(&r.1));
+        history.push((h, err, run_steps, t_from));
         let interrupted = matches!(r.2, Some(DynamicsError::Interrupted { .. }));
         if interrupted || (r.2.is_none() && err <= tol) {
             break r;
+        }
+        // a resumed run whose error fell less than in proportion to its step: the error
+        // kept from before the checkpoint may be what grows (an unstable or chaotic
+        // motion amplifies it), so the runs from here start from t = 0
+        if resumed && last.is_some_and(|(h0, e0)| err > e0 * (h / h0)) {
+            may_resume = false;
         }
         let at_floor = h <= m.solver.dt_min * (1.0 + 1e-9);
         // two runs in a row, the second at a step 4-16x smaller, with the estimate at its
@@ -2157,9 +2245,36 @@ async fn run_accuracy(
         // a step must shrink, and by at most 16x per run (an estimate far outside its
         // asymptotic range must not send the next run to a tiny step)
         let h_next = even_step(&m, next.clamp(h / 16.0, 0.9 * h));
+        // The next run resumes this one from its latest checkpoint up to which the error
+        // so far (the sensors' estimate relative to their ranges over the whole run, and
+        // the loads' and drives' share) stays within `ACCURACY_PREFIX` of the target: the
+        // steps before it are not made again. Its transported error continues, so the
+        // next run's estimate still counts what the kept part got wrong.
+        if r.2.is_none() && may_resume {
+            if let Some(end) = kept.last().filter(|c| c.samples == n_out) {
+                let budget = ACCURACY_PREFIX * tol;
+                let at = kept.iter().rev().find(|c| {
+                    c.samples < n_out
+                        && c.other_error <= budget
+                        && c.sensor_error(&end.integ.te) <= budget
+                });
+                if let Some(ck) = at {
+                    let mut prefix = r.0.clone();
+                    prefix.t.truncate(ck.samples);
+                    for v in &mut prefix.values {
+                        v.truncate(ck.samples);
+                    }
+                    resume = Some((ck.clone(), prefix));
+                }
+            }
+        }
         // a target out of reach (1e-300 asked, or an error that does not fall) must not
         // start a run of 1e10 steps: the run that would exceed the step limit is not made
-        let steps_next = (m.solver.t_end / h_next - 1e-9).ceil();
+        let span = m.solver.t_end
+            - resume
+                .as_ref()
+                .map_or(0.0, |(ck, prefix)| prefix.t[ck.samples - 1]);
+        let steps_next = (span / h_next - 1e-9).ceil();
         if steps_next > m.solver.max_steps as f64 {
             let mut r = r;
             if r.2.is_none() {
@@ -2193,12 +2308,114 @@ async fn run_accuracy(
     (hist, stats, failure)
 }
 
-/// One fixed-step run (see [`run_member`]).
+/// The energy balance's account over a run's output samples (see `run_fixed`).
+#[derive(Clone, Default)]
+struct BalanceAccount {
+    /// balance at the previous sample, locked hinges then
+    prev: Option<(f64, usize)>,
+    /// growth and loss so far of the balance's change accumulated over the sample
+    /// intervals in which no hinge locked (a lock is an impact that snaps the angle to its
+    /// stop, outside what the balance describes), the change so accumulated, and the
+    /// energy scale
+    growth: f64,
+    loss: f64,
+    accumulated: f64,
+    scale: f64,
+}
+
+impl BalanceAccount {
+    fn record(&mut self, integ: &Integrator) {
+        let e = &integ.energies;
+        let bal = e.balance();
+        let locked = integ.s.locked.iter().filter(|l| **l).count();
+        if let Some((b, l)) = self.prev {
+            if l == locked {
+                self.accumulated += bal - b;
+                self.growth = self.growth.max(self.accumulated);
+                self.loss = self.loss.max(-self.accumulated);
+            }
+        }
+        self.prev = Some((bal, locked));
+        self.scale = self
+            .scale
+            .max(e.kinetic.abs() + e.strain.abs() + e.gravity.abs())
+            .max(e.driver_work.abs())
+            .max(e.load_work.abs())
+            .max(e.dissipated.abs());
+    }
+}
+
+/// A run's state at one of its output samples, from which a run at a smaller step can
+/// resume (`run_accuracy`).
+#[derive(Clone)]
+struct Checkpoint {
+    /// output samples recorded up to and including this one
+    samples: usize,
+    integ: IntegState,
+    balance: BalanceAccount,
+    /// the run's error from its loads and drives so far, as `run_accuracy` counts it
+    other_error: f64,
+}
+
+impl Checkpoint {
+    /// The sensors' estimated error at this checkpoint, relative to their ranges over the
+    /// whole run whose last state is `end` (a share of what the run reports at its end).
+    fn sensor_error(&self, end: &TimeError) -> f64 {
+        let mut worst = 0.0f64;
+        for (k, acc) in self.integ.te.acc.iter().enumerate() {
+            if !end.estimable[k] {
+                continue;
+            }
+            for (c, a) in acc.iter().enumerate() {
+                let sc = end.scale(k, c);
+                if sc.is_finite() {
+                    worst = worst.max(a / sc);
+                }
+            }
+        }
+        worst
+    }
+}
+
+/// Checkpoints a run keeps (`run_fixed`): every `every` output samples, and at the end.
+struct Checkpoints {
+    every: usize,
+    list: Vec<Checkpoint>,
+}
+
+/// With `--accuracy`, the most checkpoints a run keeps: a resumed run starts within
+/// 1/`ACCURACY_CHECKPOINTS` of the run from where its error began to matter.
+const ACCURACY_CHECKPOINTS: usize = 32;
+
+/// With `--accuracy`, the share of the target the part of a run that a resumed run keeps
+/// may carry (see `run_accuracy`): with `ACCURACY_AIM` for the refined rest, the two
+/// together stay within the target even where their errors add.
+const ACCURACY_PREFIX: f64 = 0.25;
+
+/// The error a run's loads and drives add under `--accuracy` (see `run_accuracy`).
+fn load_and_drive_error(st: &RunStats) -> f64 {
+    st.load_impulse_error
+        .unwrap_or(0.0)
+        // aliased loads: the estimate sees the false frequency's response
+        .max(
+            st.load_sampling_error
+                .filter(|e| *e > LOAD_SAMPLING_WARN)
+                .unwrap_or(0.0),
+        )
+        .max(st.drive_rate_error.unwrap_or(0.0))
+}
+
+/// One fixed-step run (see [`run_member`]). With `resume`, it continues from a
+/// checkpoint of another run (its step, this model's), with that run's samples up to it;
+/// with `keep`, it keeps checkpoints (a resumed run's list starts with the checkpoints
+/// of the prefix it continues).
 async fn run_fixed(
     model: &Model,
     ctx: &RunContext<'_>,
     slot: Arc<Slot>,
     sizes: bool,
+    resume: Option<(&Checkpoint, &History)>,
+    mut keep: Option<&mut Checkpoints>,
     mut on_sample: impl FnMut(f64, &[Vec<f64>]),
 ) -> RunResult {
     let stop = ctx.stop;
@@ -2211,31 +2428,24 @@ async fn run_fixed(
         Err(e) => return (hist, RunStats::default(), Some(e)),
     };
     let mut output_s = 0.0;
-    // (balance at the previous sample, locked hinges then; growth and loss so far of the
-    // balance's change accumulated over the sample intervals in which no hinge locked: a
-    // lock is an impact that snaps the angle to its stop, outside what the balance
-    // describes)
-    let mut prev = None::<(f64, usize)>;
-    let (mut growth, mut loss, mut energy_scale) = (0.0f64, 0.0f64, 0.0f64);
-    let mut accumulated = 0.0f64;
-    let mut record = |integ: &Integrator, hist: &mut History| {
-        let t0 = std::time::Instant::now();
-        let e = &integ.energies;
-        let bal = e.balance();
-        let locked = integ.s.locked.iter().filter(|l| **l).count();
-        if let Some((b, l)) = prev {
-            if l == locked {
-                accumulated += bal - b;
-                growth = growth.max(accumulated);
-                loss = loss.max(-accumulated);
-            }
+    let mut balance = BalanceAccount::default();
+    let mut first = 0;
+    if let Some((ck, prefix)) = resume {
+        integ.restore(&ck.integ);
+        balance = ck.balance.clone();
+        first = ck.samples;
+        hist.t.extend_from_slice(&prefix.t[..first]);
+        for (v, p) in hist.values.iter_mut().zip(&prefix.values) {
+            v.extend_from_slice(&p[..first]);
         }
-        prev = Some((bal, locked));
-        energy_scale = energy_scale
-            .max(e.kinetic.abs() + e.strain.abs() + e.gravity.abs())
-            .max(e.driver_work.abs())
-            .max(e.load_work.abs())
-            .max(e.dissipated.abs());
+        for i in 0..first {
+            let vals: Vec<Vec<f64>> = hist.values.iter().map(|v| v[i].clone()).collect();
+            on_sample(hist.t[i], &vals);
+        }
+    }
+    let mut record = |integ: &Integrator, hist: &mut History, balance: &mut BalanceAccount| {
+        let t0 = std::time::Instant::now();
+        balance.record(integ);
         let vals = integ.sample();
         on_sample(integ.s.t, &vals);
         hist.t.push(integ.s.t);
@@ -2244,8 +2454,10 @@ async fn run_fixed(
         }
         output_s += t0.elapsed().as_secs_f64();
     };
+    let times = output_times(model);
+    let n_out = times.len();
     let mut failure = None;
-    for (i, t) in output_times(model).into_iter().enumerate() {
+    for (i, t) in times.into_iter().enumerate().skip(first) {
         if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) {
             failure = Some(DynamicsError::Interrupted { t: integ.s.t });
             break;
@@ -2256,23 +2468,33 @@ async fn run_fixed(
                 break;
             }
         }
-        record(&integ, &mut hist);
+        record(&integ, &mut hist, &mut balance);
+        if let Some(k) = keep.as_deref_mut() {
+            if i > 0 && (i % k.every == 0 || i + 1 == n_out) {
+                k.list.push(Checkpoint {
+                    samples: i + 1,
+                    integ: integ.save(),
+                    balance: balance.clone(),
+                    other_error: load_and_drive_error(&integ.run_stats()),
+                });
+            }
+        }
     }
     let mut stats = integ.run_stats();
     if sizes {
         (stats.matrix_nnz, stats.factor_nnz) = integ.sys.factor_size();
     }
     stats.times.output_s += output_s;
-    if prev.is_some() {
+    if balance.prev.is_some() {
         let rel = |x: f64| {
-            if energy_scale > 0.0 {
-                x / energy_scale
+            if balance.scale > 0.0 {
+                x / balance.scale
             } else {
                 0.0
             }
         };
-        stats.energy_growth = Some(rel(growth));
-        stats.energy_loss = Some(rel(loss));
+        stats.energy_growth = Some(rel(balance.growth));
+        stats.energy_loss = Some(rel(balance.loss));
     }
     (hist, stats, failure)
 }

@@ -257,8 +257,8 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 "dt": stats.accuracy_dt,
                 "steps_all_runs": stats.accuracy_steps,
                 "newton_iterations_all_runs": stats.accuracy_newton_iterations,
-                "history": stats.accuracy_history.iter().map(|(dt, e, n)| serde_json::json!({
-                    "dt": dt, "estimate": e, "steps": n,
+                "history": stats.accuracy_history.iter().map(|(dt, e, n, from)| serde_json::json!({
+                    "dt": dt, "estimate": e, "steps": n, "from": from,
                 })).collect::<Vec<_>>(),
             })),
             "time_error_estimate": stats.time_error_estimate,
@@ -296,8 +296,8 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 stats.accuracy_steps,
                 stats.accuracy_dt.unwrap_or(f64::NAN)
             );
-            for (dt, e, n) in &stats.accuracy_history {
-                eprintln!("  dt {dt:e} s: {n} steps, estimate {e:.3e}");
+            for (dt, e, n, from) in &stats.accuracy_history {
+                eprintln!("  dt {dt:e} s from t = {from} s: {n} steps, estimate {e:.3e}");
             }
         }
     }
