@@ -558,6 +558,45 @@ struct IntegState {
     te: TimeError,
 }
 
+impl IntegState {
+    /// Memory it holds, in bytes (the vectors; a checkpoint's share of `run_accuracy`'s
+    /// budget, `ACCURACY_CHECKPOINT_BYTES`).
+    fn bytes(&self) -> usize {
+        let mat = std::mem::size_of::<crate::math::Mat3>();
+        let state = |s: &State| {
+            8 * (s.q.len() + s.v.len() + s.a.len())
+                + mat * (s.spin.len() + s.body_r.len() + s.node_r.len())
+                + 24 * (s.body_x.len() + s.node_u.len())
+                + s.locked.len()
+        };
+        let te = &self.te;
+        let vecs = [
+            &self.aux,
+            &self.prev_a,
+            &te.e,
+            &te.ev,
+            &te.da,
+            &te.da_prev,
+            &te.r0,
+            &te.gen0,
+            &te.ym,
+            &te.gx,
+            &te.gv,
+            &te.ga,
+            &te.gacc,
+            &te.gx0,
+            &te.gv0,
+            &te.gs,
+        ];
+        state(&self.s)
+            + state(&te.moved)
+            + vecs.iter().map(|v| 8 * v.len()).sum::<usize>()
+            + 32 * self.load_impulse.len()
+            + 48 * self.drive_departure.len()
+            + te.acc.iter().map(|a| 24 * a.len()).sum::<usize>()
+    }
+}
+
 impl<'m> Integrator<'m> {
     pub fn new(model: &'m Model) -> Result<Integrator<'m>, DynamicsError> {
         Self::with_context(model, &RunContext::default())
@@ -2151,6 +2190,7 @@ async fn run_accuracy(
         m.solver.dt_max = m.solver.dt_max.max(h);
         let mut keep = Checkpoints {
             every,
+            budget: ACCURACY_CHECKPOINT_BYTES,
             list: match &resume {
                 Some((ck, _)) => kept.drain(..).filter(|c| c.samples <= ck.samples).collect(),
                 None => Vec::new(),
@@ -2377,15 +2417,23 @@ impl Checkpoint {
     }
 }
 
-/// Checkpoints a run keeps (`run_fixed`): every `every` output samples, and at the end.
+/// Checkpoints a run keeps (`run_fixed`): every `every` output samples while their
+/// memory stays within `budget` bytes (`every` grows to fit it), and at the end.
 struct Checkpoints {
     every: usize,
+    budget: usize,
     list: Vec<Checkpoint>,
 }
 
 /// With `--accuracy`, the most checkpoints a run keeps: a resumed run starts within
 /// 1/`ACCURACY_CHECKPOINTS` of the run from where its error began to matter.
 const ACCURACY_CHECKPOINTS: usize = 32;
+
+/// With `--accuracy`, the memory a run's checkpoints may take: a campaign has `--batch`
+/// variants per worker in flight (8 by default, `ensemble::DEFAULT_BATCH`), so 64 MiB
+/// each keeps 16 variants on 2 cores within 1 GiB. The shipped scenes need well under
+/// 1 MiB per checkpoint; a model whose checkpoints do not fit keeps fewer of them.
+const ACCURACY_CHECKPOINT_BYTES: usize = 64 << 20;
 
 /// With `--accuracy`, the share of the target the part of a run that a resumed run keeps
 /// may carry (see `run_accuracy`): with `ACCURACY_AIM` for the refined rest, the two
@@ -2470,13 +2518,22 @@ async fn run_fixed(
         }
         record(&integ, &mut hist, &mut balance);
         if let Some(k) = keep.as_deref_mut() {
-            if i > 0 && (i % k.every == 0 || i + 1 == n_out) {
-                k.list.push(Checkpoint {
-                    samples: i + 1,
-                    integ: integ.save(),
-                    balance: balance.clone(),
-                    other_error: load_and_drive_error(&integ.run_stats()),
-                });
+            let last = i + 1 == n_out;
+            if i > 0 && (i % k.every == 0 || last) {
+                let saved = integ.save();
+                let b = saved.bytes().max(1);
+                // a large model keeps fewer: their memory stays within the budget (the
+                // run's last state is kept anyway, for the ranges it ends with)
+                let fit = (k.budget / b).max(1);
+                k.every = k.every.max(n_out.div_ceil(fit));
+                if last || (k.list.len() + 1) * b <= k.budget {
+                    k.list.push(Checkpoint {
+                        samples: i + 1,
+                        integ: saved,
+                        balance: balance.clone(),
+                        other_error: load_and_drive_error(&integ.run_stats()),
+                    });
+                }
             }
         }
     }
@@ -2502,6 +2559,68 @@ async fn run_fixed(
 #[cfg(test)]
 mod tests {
     use super::{factor_integral, spread_evenly};
+
+    /// The checkpoints `run_fixed` keeps of the shipped spin-up beam over 2 s (41
+    /// samples) asked for every 4th sample, within `budget` checkpoints' worth of memory.
+    fn checkpoints(budget: usize) -> (Vec<usize>, usize) {
+        use super::{drive, run_fixed, Checkpoints, CpuEval, Member, RunContext, Slot};
+        use std::sync::Arc;
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/spinup_beam.toml");
+        let model = crate::model::compile::load(path.as_ref(), &[("t_end".into(), 2.0)]).unwrap();
+        let ctx = RunContext::default();
+        let one = {
+            let mut k = Checkpoints {
+                every: 40,
+                budget: usize::MAX,
+                list: Vec::new(),
+            };
+            run_checkpointed(&model, &ctx, &mut k);
+            k.list[0].integ.bytes()
+        };
+        let mut keep = Checkpoints {
+            every: 4,
+            budget: budget * one,
+            list: Vec::new(),
+        };
+        run_checkpointed(&model, &ctx, &mut keep);
+        fn run_checkpointed(model: &crate::model::Model, ctx: &RunContext, keep: &mut Checkpoints) {
+            let slot = Slot::new();
+            let member = Member {
+                elems: &model.elem_data,
+                slot: Arc::clone(&slot),
+                run: Box::pin(run_fixed(
+                    model,
+                    ctx,
+                    slot,
+                    false,
+                    None,
+                    Some(keep),
+                    |_, _| {},
+                )),
+            };
+            let mut ok = false;
+            drive(&CpuEval, vec![member], |_, r| {
+                ok = matches!(r, Ok((_, _, None)));
+            });
+            assert!(ok);
+        }
+        (keep.list.iter().map(|c| c.samples).collect(), keep.every)
+    }
+
+    #[test]
+    fn checkpoints_beyond_their_memory_budget_are_thinned_and_the_end_is_kept() {
+        // within budget: every 4th of the 41 samples (indices 4 .. 40), the last among them
+        let (all, every) = checkpoints(100);
+        assert_eq!(every, 4);
+        assert_eq!(all, (1..=10).map(|j| 4 * j + 1).collect::<Vec<_>>());
+        // three checkpoints' worth: the spacing grows to 41/3 → 14 samples, and no more
+        // than three are kept before the last
+        let (few, every) = checkpoints(3);
+        assert_eq!(every, 14);
+        assert!(few.len() <= 4, "{few:?}");
+        assert_eq!(*few.last().unwrap(), 41, "{few:?}");
+        assert!(few.windows(2).all(|w| w[0] < w[1]), "{few:?}");
+    }
     use crate::model::expr::TimeFunction;
 
     fn integral(src: &str, t0: f64, t1: f64) -> (f64, f64) {

@@ -941,9 +941,16 @@ fn time_error_ladder(
                     let mut line = format!(
                         "time_error: {scene} dt {dt}{}: {steps} steps, {wall:.2} s",
                         accuracy.map_or(String::new(), |a| format!(
-                            " accuracy {a} ({} runs, the result's step {:e} s)",
+                            " accuracy {a} ({} runs, the result's step {:e} s; {})",
                             st.accuracy_runs,
-                            st.accuracy_dt.unwrap_or(f64::NAN)
+                            st.accuracy_dt.unwrap_or(f64::NAN),
+                            st.accuracy_history
+                                .iter()
+                                .map(|(dt, e, n, from)| format!(
+                                    "{dt:.3e} s from {from} s: {n} steps, estimate {e:.2e}"
+                                ))
+                                .collect::<Vec<_>>()
+                                .join("; ")
                         )),
                     );
                     for ((&k, name), (pw, ex)) in idx.iter().zip(sensors).zip(errs) {
