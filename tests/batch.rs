@@ -212,6 +212,37 @@ fn a_failing_variant_leaves_its_batch_and_the_others_finish_bit_identical() {
 }
 
 #[test]
+fn accuracy_runs_that_resume_from_a_checkpoint_batch_bit_identically() {
+    // over 12 s the spin-up's second run resumes the first (steps of 0.025 s, 480 of
+    // them) at about 6 s: its result then counts the kept part's steps, so the steps of
+    // all runs fall short of the first run's plus the result's
+    let vs: Vec<Vec<(String, f64)>> = [5.0, 6.0, 7.0]
+        .iter()
+        .map(|ws| {
+            vec![
+                ("ws".to_string(), *ws),
+                ("t_end".to_string(), 12.0),
+                ("dt".to_string(), 0.04),
+            ]
+        })
+        .collect();
+    let c = Campaign {
+        accuracy: Some(1e-2),
+        ..campaign("models/spinup_beam.toml", vs.clone(), 1)
+    };
+    for (b, out, _) in run_batched(&c, &[1, vs.len()]) {
+        assert!(
+            out.iter()
+                .any(|o| o.accuracy_runs == 2 && o.accuracy_steps < o.steps + 480),
+            "batch {b}: no variant resumed"
+        );
+        for o in &out {
+            assert_same_as_single(&c, o, &format!("resumed, batch {b}"));
+        }
+    }
+}
+
+#[test]
 fn accuracy_targets_and_their_runs_batch_bit_identically() {
     // with a 1 % target from 0.04 s the spin-up beam makes more than one run
     let vs: Vec<Vec<(String, f64)>> = [4.0, 5.0, 6.0, 7.0, 8.0]
