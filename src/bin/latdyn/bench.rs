@@ -47,7 +47,9 @@ pub const PROBLEMS: [&str; 8] = [
 ];
 
 /// Problems a bare `latdyn bench` leaves out: `accuracy` (the time-error ladder with
-/// `--accuracy` runs) takes about 35 minutes.
+/// `--accuracy` runs) took about 35 minutes before the rotating cantilever's steady start
+/// (session 18); 70 s in session 26, most of it that scene's reference and `--accuracy`
+/// run.
 const OPT_IN: [&str; 1] = ["accuracy"];
 
 /// One run of a ladder.
