@@ -2299,11 +2299,16 @@ async fn run_accuracy(
                         && c.sensor_error(&end.integ.te) <= budget
                 });
                 if let Some(ck) = at {
-                    let mut prefix = r.0.clone();
-                    prefix.t.truncate(ck.samples);
-                    for v in &mut prefix.values {
-                        v.truncate(ck.samples);
-                    }
+                    // the samples up to the checkpoint only (a history may be large)
+                    let prefix = History {
+                        t: r.0.t[..ck.samples].to_vec(),
+                        values: r
+                            .0
+                            .values
+                            .iter()
+                            .map(|v| v[..ck.samples].to_vec())
+                            .collect(),
+                    };
                     resume = Some((ck.clone(), prefix));
                 }
             }
