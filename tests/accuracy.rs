@@ -347,6 +347,22 @@ fn spin_up_reference() -> &'static Value {
     })
 }
 
+/// The spin-up beam over 12 s with `--accuracy 1e-2` from dt = 0.04 (steps of 0.025 s).
+fn spin_up_with_accuracy() -> &'static Value {
+    static RUN: std::sync::OnceLock<Value> = std::sync::OnceLock::new();
+    RUN.get_or_init(|| {
+        run_json(&[
+            "models/spinup_beam.toml",
+            "--set",
+            "dt=0.04",
+            "--set",
+            "t_end=12",
+            "--accuracy",
+            "1e-2",
+        ])
+    })
+}
+
 #[test]
 fn the_spin_up_estimate_is_its_true_error_not_a_third_of_it() {
     // The driven hub's rigid motion: the per-step sum had to leave its truncation error
@@ -429,15 +445,7 @@ fn accuracy_on_the_spin_up_meets_the_target_within_one_and_a_half_times_the_chea
             (e < 1e-2).then(|| v["steps"].as_u64().unwrap())
         })
         .expect("a fixed step of the ladder meets 1e-2");
-    let v = run_json(&[
-        "models/spinup_beam.toml",
-        "--set",
-        "dt=0.04",
-        "--set",
-        "t_end=12",
-        "--accuracy",
-        "1e-2",
-    ]);
+    let v = spin_up_with_accuracy();
     let truth = history_error(&v, spin_up_reference(), "tip_deflection");
     assert!(truth < 1e-2, "true error {truth:.3e}");
     let all = v["accuracy"]["steps_all_runs"].as_u64().unwrap();
@@ -455,19 +463,10 @@ fn a_resumed_run_repeats_no_step_before_its_checkpoint_and_adds_at_most_its_budg
     // 0.025 s) where the error so far is within a quarter of the target. So: its samples
     // up to there are the first run's, bit for bit (the first run is what a looser
     // target, met at once, returns); the steps it counts are its own after the
-    // checkpoint; and its true
-    // error exceeds that of a run at its step from t = 0 by at most that quarter
-    // (measured: 4.4e-3 against 3.1e-3 over these 12 s).
+    // checkpoint; and its true error exceeds that of a run at its step from t = 0 by at
+    // most that quarter (measured: 4.4e-3 against 3.1e-3 over these 12 s).
     let target = 1e-2;
-    let v = run_json(&[
-        "models/spinup_beam.toml",
-        "--set",
-        "dt=0.04",
-        "--set",
-        "t_end=12",
-        "--accuracy",
-        "1e-2",
-    ]);
+    let v = spin_up_with_accuracy();
     let hist = v["accuracy"]["history"].as_array().unwrap();
     assert_eq!(hist.len(), 2, "{}", v["accuracy"]);
     let from = hist[1]["from"].as_f64().unwrap();
@@ -526,6 +525,40 @@ fn a_resumed_run_repeats_no_step_before_its_checkpoint_and_adds_at_most_its_budg
     // the estimate still counts the kept part's error
     let est = v["time_error_estimate"].as_f64().unwrap();
     assert!(est >= truth && est <= 3.0 * truth, "{est:.3e} {truth:.3e}");
+}
+
+#[test]
+fn a_resumed_run_whose_error_does_not_fall_sends_the_next_back_to_t_zero_at_its_step() {
+    // A pendulum released 0.0116 rad from upright: the error of the first seconds is
+    // amplified as the motion leaves the unstable equilibrium. The first run (0.02 s)
+    // reads 0.25; the second resumes it at about 3 s, and its estimate does not fall,
+    // because what grows is the kept part's error. So the third starts from t = 0 at the
+    // second's step (predicted for the whole run), and meets the target (measured: 1 500
+    // steps, estimate 2.2e-3, true 6.1e-5 against dt = 2e-5; before that rule the third
+    // run took the second's estimate for its own and 9 000 steps).
+    let sets = ["--set", "theta0=3.13", "--set", "t_end=5"];
+    let reference =
+        run_json(&[&["models/pendulum.toml"], &sets[..], &["--set", "dt=1e-4"]].concat());
+    let v = run_json(
+        &[
+            &["models/pendulum.toml"],
+            &sets[..],
+            &["--set", "dt=0.02", "--accuracy", "1e-2"],
+        ]
+        .concat(),
+    );
+    let hist = v["accuracy"]["history"].as_array().unwrap();
+    assert_eq!(hist.len(), 3, "{}", v["accuracy"]);
+    assert!(hist[1]["from"].as_f64().unwrap() > 0.0, "{}", v["accuracy"]);
+    assert_eq!(hist[2]["from"].as_f64().unwrap(), 0.0, "{}", v["accuracy"]);
+    assert_eq!(hist[2]["dt"], hist[1]["dt"], "{}", v["accuracy"]);
+    let truth = history_error(&v, &reference, "angle");
+    let est = v["time_error_estimate"].as_f64().unwrap();
+    assert!(
+        truth < 1e-2 && est <= 1e-2 && est >= truth,
+        "{truth:.3e} {est:.3e}"
+    );
+    assert!(warnings(&v).is_empty(), "{:?}", warnings(&v));
 }
 
 #[test]

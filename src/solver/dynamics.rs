@@ -2157,6 +2157,9 @@ fn even_step(model: &Model, h: f64) -> f64 {
 /// located in time) whose transported error estimate ([`TimeError`]) is compared with
 /// the target; the next run's step follows from the error's observed order (2 until two
 /// runs have measured it, kept within 1 to 3), aiming at `ACCURACY_AIM` of the target.
+/// A run resumes the last one from its latest checkpoint whose error so far is within
+/// `ACCURACY_PREFIX` of the target (the steps before it are not made again), unless a
+/// resumed run's error did not fall with its step: then the runs start from t = 0.
 /// The first run that meets the target is the result; after `ACCURACY_MAX_RUNS` runs, or
 /// at `dt_min`, the last run is returned with a warning. Its samples reach `on_sample`
 /// once the run is chosen; its stats count the steps of every run made
@@ -2232,9 +2235,11 @@ async fn run_accuracy(
             break r;
         }
         // a resumed run whose error fell less than in proportion to its step: the error
-        // kept from before the checkpoint may be what grows (an unstable or chaotic
-        // motion amplifies it), so the runs from here start from t = 0
-        if resumed && last.is_some_and(|(h0, e0)| err > e0 * (h / h0)) {
+        // kept from before the checkpoint may be what grows (an unstable motion amplifies
+        // it: the pendulum released near upright), so the runs from here start from t = 0,
+        // the next at this run's step, which was predicted for the whole run
+        let restart = resumed && last.is_some_and(|(h0, e0)| err > e0 * (h / h0));
+        if restart {
             may_resume = false;
         }
         let at_floor = h <= m.solver.dt_min * (1.0 + 1e-9);
@@ -2270,6 +2275,8 @@ async fn run_accuracy(
         // a failed first run (a step too large for Newton): a quarter of it
         let next = if r.2.is_some() || !err.is_finite() {
             0.25 * h
+        } else if restart {
+            h
         } else {
             // the order measured between two runs in the asymptotic range; else the
             // scheme's
@@ -2284,7 +2291,10 @@ async fn run_accuracy(
         };
         // a step must shrink, and by at most 16x per run (an estimate far outside its
         // asymptotic range must not send the next run to a tiny step)
-        let h_next = even_step(&m, next.clamp(h / 16.0, 0.9 * h));
+        let h_next = match restart && r.2.is_none() {
+            true => h,
+            false => even_step(&m, next.clamp(h / 16.0, 0.9 * h)),
+        };
         // The next run resumes this one from its latest checkpoint up to which the error
         // so far (the sensors' estimate relative to their ranges over the whole run, and
         // the loads' and drives' share) stays within `ACCURACY_PREFIX` of the target: the
