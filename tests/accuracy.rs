@@ -446,7 +446,7 @@ fn accuracy_on_the_spin_up_meets_the_target_within_one_and_a_half_times_the_chea
         })
         .expect("a fixed step of the ladder meets 1e-2");
     let v = spin_up_with_accuracy();
-    let truth = history_error(&v, spin_up_reference(), "tip_deflection");
+    let truth = history_error(v, spin_up_reference(), "tip_deflection");
     assert!(truth < 1e-2, "true error {truth:.3e}");
     let all = v["accuracy"]["steps_all_runs"].as_u64().unwrap();
     eprintln!(
@@ -454,7 +454,7 @@ fn accuracy_on_the_spin_up_meets_the_target_within_one_and_a_half_times_the_chea
         all as f64 / cheapest as f64
     );
     assert!(2 * all <= 3 * cheapest, "{}", v["accuracy"]);
-    assert!(warnings(&v).is_empty(), "{:?}", warnings(&v));
+    assert!(warnings(v).is_empty(), "{:?}", warnings(v));
 }
 
 #[test]
@@ -515,7 +515,7 @@ fn a_resumed_run_repeats_no_step_before_its_checkpoint_and_adds_at_most_its_budg
         "--set",
         "t_end=12",
     ]);
-    let truth = history_error(&v, spin_up_reference(), "tip_deflection");
+    let truth = history_error(v, spin_up_reference(), "tip_deflection");
     let truth_fine = history_error(&fine, spin_up_reference(), "tip_deflection");
     eprintln!("resumed at t = {from}: true {truth:.3e}; from t = 0 at {h}: {truth_fine:.3e}");
     assert!(
