@@ -309,16 +309,22 @@ impl TimeError {
 
     /// Per sensor, the accumulated error relative to the range (NaN: not estimable).
     fn by_sensor(&self) -> Vec<f64> {
-        (0..self.acc.len())
+        self.relative(&self.acc)
+    }
+
+    /// Per sensor, the largest of the deviations `acc` (per component, as [`Self::acc`])
+    /// relative to this run's ranges (NaN: not estimable).
+    fn relative(&self, acc: &[Vec<f64>]) -> Vec<f64> {
+        (0..acc.len())
             .map(|k| {
                 if !self.estimable[k] {
                     return f64::NAN;
                 }
-                (0..self.acc[k].len())
+                (0..acc[k].len())
                     .map(|c| {
                         let sc = self.scale(k, c);
                         if sc.is_finite() {
-                            self.acc[k][c] / sc
+                            acc[k][c] / sc
                         } else {
                             0.0
                         }
@@ -2291,8 +2297,9 @@ async fn run_accuracy(
         };
         // a step must shrink, and by at most 16x per run (an estimate far outside its
         // asymptotic range must not send the next run to a tiny step)
-        let h_next = match restart && r.2.is_none() {
-            true => h,
+        // (a restart from t = 0 keeps the step: its run differs from this one)
+        let h_next = match restart {
+            true => even_step(&m, next),
             false => even_step(&m, next.clamp(h / 16.0, 0.9 * h)),
         };
         // The next run resumes this one from its latest checkpoint up to which the error
@@ -2416,19 +2423,10 @@ impl Checkpoint {
     /// The sensors' estimated error at this checkpoint, relative to their ranges over the
     /// whole run whose last state is `end` (a share of what the run reports at its end).
     fn sensor_error(&self, end: &TimeError) -> f64 {
-        let mut worst = 0.0f64;
-        for (k, acc) in self.integ.te.acc.iter().enumerate() {
-            if !end.estimable[k] {
-                continue;
-            }
-            for (c, a) in acc.iter().enumerate() {
-                let sc = end.scale(k, c);
-                if sc.is_finite() {
-                    worst = worst.max(a / sc);
-                }
-            }
-        }
-        worst
+        // f64::max passes over the NaN of sensors without an estimate
+        end.relative(&self.integ.te.acc)
+            .into_iter()
+            .fold(0.0, f64::max)
     }
 }
 
