@@ -147,6 +147,14 @@ pub fn variants(
             )));
         }
     }
+    // a parameter both set and varied: the variants' values would silently replace the
+    // one given with --set
+    if let Some(r) = vary.iter().find(|r| base.iter().any(|(n, _)| *n == r.name)) {
+        return Err(EnsembleError::Invalid(format!(
+            "--set {} and --vary {} both give `{}`: give each parameter in one of them",
+            r.name, r.name, r.name
+        )));
+    }
     let grid_count: f64 = vary.iter().map(|r| r.count as f64).product();
     let too_many = |n: f64, what: &str| {
         EnsembleError::Invalid(model::limits::exceeded(what, n, "variants", lim.variants))
@@ -168,6 +176,15 @@ pub fn variants(
                 r.name,
                 p.display(),
                 r.name
+            )));
+        }
+        if let Some((n, _)) = base
+            .iter()
+            .find(|(n, _)| rows[0].iter().any(|(c, _)| c == n))
+        {
+            return Err(EnsembleError::Invalid(format!(
+                "--set {n} and --variants {} both give `{n}`: give each parameter in one of them",
+                p.display()
             )));
         }
         let total = rows.len() as f64 * grid_count;

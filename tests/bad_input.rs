@@ -364,3 +364,55 @@ fn an_output_that_is_an_input_file_is_refused_and_the_input_kept() {
     assert_eq!(std::fs::read_to_string(&model).unwrap(), text);
     assert_eq!(std::fs::read_to_string(&csv).unwrap(), "theta0\n0.1\n");
 }
+
+#[test]
+fn a_parameter_given_by_set_and_by_a_variation_is_refused_and_one_set_twice_is_noted() {
+    // the variation's values silently replaced the --set value, and the last of two
+    // --set values won without a word
+    let m = "models/pendulum.toml";
+    usage_error(
+        &[
+            "sweep",
+            m,
+            "--vary",
+            "theta0=1:2:2",
+            "--set",
+            "theta0=5",
+            "--set",
+            "t_end=0.01",
+        ],
+        "--set theta0 and --vary theta0 both give `theta0`",
+    );
+    let one = temp("theta.csv", "theta0\n1\n");
+    usage_error(
+        &[
+            "sweep",
+            m,
+            "--variants",
+            one.to_str().unwrap(),
+            "--set",
+            "theta0=5",
+        ],
+        "--set theta0 and --variants",
+    );
+    // a value given twice: the last wins (a script extends a base command line), and a
+    // note says which value it replaced
+    let out = latdyn(&[
+        "run",
+        m,
+        "--set",
+        "t_end=0.5",
+        "--set",
+        "t_end=0.01",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("--set t_end given more than once: the last, 0.01, replaces 0.5"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let t = v["sensors"]["angle"]["t"].as_array().unwrap();
+    assert_eq!(t.last().unwrap().as_f64(), Some(0.01));
+}

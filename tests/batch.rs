@@ -213,8 +213,8 @@ fn a_failing_variant_leaves_its_batch_and_the_others_finish_bit_identical() {
 
 #[test]
 fn accuracy_runs_that_resume_from_a_checkpoint_batch_bit_identically() {
-    // over 12 s the spin-up's second run resumes the first (steps of 0.025 s, 480 of
-    // them) at about 6 s: its result then counts the kept part's steps, so the steps of
+    // over 12 s the spin-up's second run resumes the first (steps of 0.04 s, about 300
+    // of them) at about 5 s: its result then counts the kept part's steps, so the steps of
     // all runs fall short of the first run's plus the result's
     let vs: Vec<Vec<(String, f64)>> = [5.0, 6.0, 7.0]
         .iter()

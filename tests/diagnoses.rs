@@ -322,3 +322,26 @@ fn a_step_that_keeps_collapsing_stops_as_stalled_with_exit_3() {
     // a stall is found within a few thousand attempts, not after minutes
     assert!(started.elapsed().as_secs() < 60);
 }
+
+#[test]
+fn a_tangent_too_ill_conditioned_to_factor_is_named_not_reported_as_a_stall_at_zero() {
+    // 3 000 elements of the shipped cantilever: the LU's condition estimate passes its
+    // limit, Newton cannot start, and the message only said "stalled at load factor 0
+    // after 0 Newton iterations (worst residual 2.2e-308)"
+    let out = latdyn(&[
+        "statics",
+        "models/cantilever.toml",
+        "--set",
+        "elements=3000",
+        "--set",
+        "P=1",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("the tangent stiffness could not be factored")
+            && err.contains("18000 coordinates")
+            && err.contains("fewer elements"),
+        "{err}"
+    );
+}

@@ -143,6 +143,22 @@ pub(crate) fn injected_panic(site: &str) -> bool {
 }
 
 pub(crate) fn dispatch(cli: &Cli) -> anyhow::Result<()> {
+    let sets = match &cli.verb {
+        Verb::Check(a) => &a.set[..],
+        Verb::Statics(a) => &a.model.set[..],
+        Verb::Modes(a) => &a.model.set[..],
+        Verb::Run(a) => &a.model.set[..],
+        Verb::Sweep(a) => &a.model.set[..],
+        Verb::Merge(_) | Verb::Plot(_) | Verb::Bench(_) => &[][..],
+    };
+    // the last of two values wins (scripts extend a base command line), and says so
+    for (i, (name, v)) in sets.iter().enumerate() {
+        if let Some((_, w)) = sets[..i].iter().rev().find(|(n, w)| n == name && w != v) {
+            if !sets[i + 1..].iter().any(|(n, _)| n == name) {
+                eprintln!("note: --set {name} given more than once: the last, {v}, replaces {w}");
+            }
+        }
+    }
     match &cli.verb {
         Verb::Check(a) => check::check(a),
         Verb::Statics(a) => statics::statics(a),
