@@ -719,6 +719,27 @@ pub fn merge(
     };
     let info = first.info.clone();
     drop(first);
+    // every shard's sensor datasets must be what the raw chunk copy below assumes: the
+    // campaign's shape, latdyn's chunks, element type and filters (a file rewritten by
+    // another tool would otherwise be copied into garbage or an unreadable file)
+    for p in inputs {
+        let f = CampaignFile::open(p)?;
+        let rows = f.global_index.len();
+        for s in &sensors {
+            let src = f
+                .sensor(&s.name)
+                .map_err(|e| MergeError::Refused(format!("{}: {}", p.display(), e.message)))?;
+            if let Some(why) = sensor_copy_mismatch(&src, rows, meta.time.len(), s) {
+                return Err(MergeError::Refused(format!(
+                    "{}: /sensors/{}: {why}; merge copies the stored chunks as they are and \
+                     refuses a shard whose sensors were not written by latdyn (rewritten by \
+                     another tool?)",
+                    p.display(),
+                    s.name
+                )));
+            }
+        }
+    }
     // `sweep --verify` verifies in shard 1 only: its figures are the campaign's
     let verification = match with_verification.as_slice() {
         [k] => CampaignFile::open(&inputs[*k])?.verification(&sensors)?,
@@ -730,8 +751,14 @@ pub fn merge(
             None
         }
     };
+    // a shard that cannot be read is refused input (exit 2), not an output failure (5)
+    let input_fault = std::cell::RefCell::new(None::<String>);
     let mut fill = |out: &[H5Dataset]| -> Result<(), OutputError> {
-        let bad = |p: &Path, m: String| OutputError::Invalid(format!("{}: {m}", p.display()));
+        let bad = |p: &Path, m: String| {
+            let m = format!("{}: {m}", p.display());
+            *input_fault.borrow_mut() = Some(m.clone());
+            OutputError::Invalid(m)
+        };
         for p in inputs {
             let f = CampaignFile::open(p).map_err(|e| bad(p, e.message))?;
             for (s, ds) in sensors.iter().zip(out) {
@@ -772,14 +799,20 @@ pub fn merge(
                             }
                         };
                         ds.write_chunk_raw_at(&[g, ct, 0], &bytes, mask)
-                            .map_err(|e| bad(p, format!("copying /sensors/{}: {e}", s.name)))?;
+                            .map_err(|e| {
+                                OutputError::Invalid(format!(
+                                    "{}: copying /sensors/{}: {e}",
+                                    p.display(),
+                                    s.name
+                                ))
+                            })?;
                     }
                 }
             }
         }
         Ok(())
     };
-    CampaignWriter::write_streamed(
+    let written = CampaignWriter::write_streamed(
         target,
         &meta,
         Some(info),
@@ -792,10 +825,39 @@ pub fn merge(
             "complete"
         },
         &mut fill,
-    )?;
+    );
+    if let Err(e) = written {
+        return Err(match input_fault.into_inner() {
+            Some(m) => MergeError::Refused(m),
+            None => e.into(),
+        });
+    }
     report.status = if incomplete { "incomplete" } else { "complete" }.into();
     report.wall_s = t0.elapsed().as_secs_f64();
     Ok(())
+}
+
+/// Why the stored chunks of `src` (a `/sensors` dataset of a file with `rows` variants
+/// and `n_time` output times) cannot be copied as they are for sensor `s`, or `None`.
+fn sensor_copy_mismatch(
+    src: &H5Dataset,
+    rows: usize,
+    n_time: usize,
+    s: &SensorMeta,
+) -> Option<String> {
+    let nc = s.components.len();
+    let want = [rows, n_time, nc];
+    if src.shape() != want {
+        return Some(format!(
+            "shape {:?}, the campaign has {want:?} ({rows} variant(s) in the file, {n_time} \
+             output times, {nc} components)",
+            src.shape()
+        ));
+    }
+    if rows == 0 || n_time == 0 {
+        return None; // nothing stored, nothing copied
+    }
+    crate::output::raw_copy_mismatch(src, &[1, crate::output::chunk_times(nc, n_time), nc])
 }
 
 /// What `sweep --resume FILE` runs, and the file reopened to take it.
@@ -885,6 +947,17 @@ pub fn resume(
         .iter()
         .map(|s| f.sensor(&s.name))
         .collect::<Result<Vec<_>, _>>()?;
+    for (ds, s) in datasets.iter().zip(&meta.sensors) {
+        if let Some(why) = sensor_copy_mismatch(ds, f.global_index.len(), f.time.len(), s) {
+            return Err(MergeError::Refused(format!(
+                "--resume {}: /sensors/{}: {why}; --resume keeps the stored chunks of the \
+                 completed variants as they are and refuses a file whose sensors were not \
+                 written by latdyn (rewritten by another tool?)",
+                f.path.display(),
+                s.name
+            )));
+        }
+    }
     let path = f.path.clone();
     let mut chunk = |k: usize, row: usize, ct: usize| -> Result<Option<Vec<u8>>, OutputError> {
         if rerun[row] {

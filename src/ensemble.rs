@@ -112,9 +112,23 @@ impl Range {
         if self.count == 1 {
             return vec![self.start];
         }
-        (0..self.count)
-            .map(|i| self.start + (self.stop - self.start) * i as f64 / (self.count - 1) as f64)
-            .collect()
+        let n = (self.count - 1) as f64;
+        let span = self.stop - self.start;
+        if span.is_finite() {
+            (0..self.count)
+                .map(|i| self.start + span * i as f64 / n)
+                .collect()
+        } else {
+            // a span past f64 (1e308 to -1e308) made every value but the first NaN; the
+            // weighted form stays finite (the arithmetic above is kept where it is finite,
+            // so campaigns keep their parameter values bit for bit)
+            (0..self.count)
+                .map(|i| {
+                    let f = i as f64 / n;
+                    self.start * (1.0 - f) + self.stop * f
+                })
+                .collect()
+        }
     }
 }
 
@@ -1075,6 +1089,15 @@ pub fn summarize(m: &Model, h: &dynamics::History) -> Vec<SensorSummary> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_range_whose_span_passes_f64_gives_finite_values_and_others_are_unchanged() {
+        let r = super::Range::parse("x=1e308:-1e308:3").unwrap();
+        assert_eq!(r.values(), vec![1e308, 0.0, -1e308]);
+        let r = super::Range::parse("x=0.1:0.7:4").unwrap();
+        let plain: Vec<f64> = (0..4).map(|i| 0.1 + (0.7 - 0.1) * i as f64 / 3.0).collect();
+        assert_eq!(r.values(), plain);
+    }
+
     #[test]
     fn a_spreadsheet_export_with_a_byte_order_mark_and_quotes_reads_as_plain_csv() {
         let dir = std::env::temp_dir().join(format!("latdyn-csv-{}", std::process::id()));

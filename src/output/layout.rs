@@ -14,6 +14,10 @@ use rust_hdf5::{DatatypeMessage, H5Dataset, H5File};
 
 use super::SensorMeta;
 
+/// Most components a `/sensors` dataset may claim when read: latdyn's sensors have a
+/// dozen at most, and a reader builds one name per component before reading any data.
+pub const MAX_SENSOR_COMPONENTS: usize = 1024;
+
 /// A dataset of an open file (the HDF5 crate's handle).
 pub use rust_hdf5::H5Dataset as Dataset;
 
@@ -196,9 +200,18 @@ impl Reader {
     }
 
     /// A sensor's name, components and units from its attributes; `c0`, `c1`, … and no
-    /// units where they cannot be read. `ds` is the `/sensors/<name>` dataset.
-    pub fn sensor_meta(&self, name: &str, ds: &H5Dataset) -> SensorMeta {
+    /// units where they cannot be read. `ds` is the `/sensors/<name>` dataset. Refused
+    /// (before any allocation) when the dataset claims more than
+    /// [`MAX_SENSOR_COMPONENTS`] components: a 16 KB file can claim 10⁹.
+    pub fn sensor_meta(&self, name: &str, ds: &H5Dataset) -> Result<SensorMeta, String> {
         let n_comp = ds.shape().get(2).copied().unwrap_or(1);
+        if n_comp > MAX_SENSOR_COMPONENTS {
+            return Err(format!(
+                "/sensors/{name}: shape {:?} claims {n_comp} components; a latdyn sensor has \
+                 at most {MAX_SENSOR_COMPONENTS} (the file is damaged or not latdyn's)",
+                ds.shape()
+            ));
+        }
         let mut components = self
             .string_array_attr(ds, attr::COMPONENTS)
             .unwrap_or_default();
@@ -209,11 +222,11 @@ impl Reader {
         if units.len() != n_comp {
             units = vec![String::new(); n_comp];
         }
-        SensorMeta {
+        Ok(SensorMeta {
             name: name.to_string(),
             components,
             units,
-        }
+        })
     }
 
     /// A string-array attribute of a dataset (variable-length or fixed-length strings).

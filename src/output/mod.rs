@@ -159,6 +159,97 @@ use rust_hdf5::{DatatypeMessage, H5File, H5Group};
 /// [`CampaignWriter::write_streamed`]).
 pub type FillChunks<'a> = dyn FnMut(&[rust_hdf5::H5Dataset]) -> Result<(), OutputError> + 'a;
 
+/// The command line as the user typed it, for the files and lock files that record it.
+/// An argument that is not valid UTF-8 (a path with a Latin-1 byte) is shown lossily
+/// (U+FFFD) instead of panicking as `std::env::args` does.
+pub fn command_line() -> String {
+    std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// `path` with `suffix` appended to its file name, byte for byte (a name that is not
+/// UTF-8 keeps its bytes: a lossy name could make two paths share a lock file).
+fn sibling_with_suffix(path: &Path, prefix: &str, suffix: &str) -> PathBuf {
+    let mut name = std::ffi::OsString::from(prefix);
+    name.push(path.file_name().unwrap_or_default());
+    name.push(suffix);
+    path.with_file_name(name)
+}
+
+/// Why the stored chunks of `/sensors/<name>` dataset `ds` (of a file latdyn is to copy
+/// them from, `merge` or `sweep --resume`) cannot be copied as stored bytes into a file
+/// latdyn writes, or `None` if they can: its chunks must be `chunk` and it must hold
+/// little-endian IEEE float64 through the filters latdyn's writer uses (shuffle of 8-byte
+/// elements, then deflate at any level). Another pipeline (no shuffle, no compression,
+/// a checksum, another compressor) or element type would be read back as garbage after a
+/// raw copy: a decoder of the shuffled pipeline decodes unshuffled bytes into other
+/// numbers without any error.
+pub fn raw_copy_mismatch(ds: &rust_hdf5::H5Dataset, chunk: &[usize]) -> Option<String> {
+    use rust_hdf5::format::messages::filter::{FILTER_DEFLATE, FILTER_SHUFFLE};
+    let chunks = ds.chunk_dims();
+    if chunks.as_deref() != Some(chunk) {
+        return Some(format!(
+            "its chunks are {}, latdyn writes {chunk:?}",
+            chunks.map_or("none (not chunked)".to_string(), |c| format!("{c:?}"))
+        ));
+    }
+    match ds.datatype() {
+        Ok(DatatypeMessage::FloatingPoint {
+            size: 8,
+            byte_order: rust_hdf5::ByteOrder::LittleEndian,
+            bit_offset: 0,
+            bit_precision: 64,
+            exponent_size: 11,
+            mantissa_size: 52,
+            exponent_bias: 1023,
+            ..
+        }) => {}
+        Ok(other) => {
+            return Some(format!(
+                "its element type is {other:?}, latdyn writes little-endian float64"
+            ))
+        }
+        Err(e) => return Some(format!("its element type cannot be read ({e})")),
+    }
+    let filters = match ds.filters() {
+        Ok(f) => f,
+        Err(e) => return Some(format!("its filter pipeline cannot be read ({e})")),
+    };
+    let name = |id: u16| match id {
+        FILTER_SHUFFLE => "shuffle".to_string(),
+        FILTER_DEFLATE => "deflate".to_string(),
+        3 => "fletcher32".to_string(),
+        other => format!("filter {other}"),
+    };
+    let ok = matches!(
+        filters.as_slice(),
+        [sh, de] if sh.id == FILTER_SHUFFLE
+            && (sh.cd_values.is_empty() || sh.cd_values[0] == 8)
+            && de.id == FILTER_DEFLATE
+    );
+    if ok {
+        None
+    } else {
+        let shown: Vec<String> = filters.iter().map(|f| name(f.id)).collect();
+        Some(format!(
+            "its filter pipeline is {}, latdyn writes [shuffle, deflate]",
+            if shown.is_empty() {
+                "empty (uncompressed)".to_string()
+            } else {
+                format!("[{}]", shown.join(", "))
+            }
+        ))
+    }
+}
+
+/// Longest sensor or derived-quantity name, in bytes (UTF-8). The HDF5 layout stores
+/// names as link names, which this library cannot read back from 65 536 bytes on (the
+/// file was written, then `plot` found no such sensor and `merge` failed); 255 is the
+/// common file-name limit and far more than any readable CSV column or legend needs.
+pub const MAX_NAME_BYTES: usize = 255;
+
 /// Target number of f64 values in one sensor chunk (512 KiB uncompressed).
 pub const CHUNK_ELEMENTS: usize = 65_536;
 
@@ -464,8 +555,8 @@ impl OutputTarget {
             path: path.to_path_buf(),
             source,
         };
-        let name = match path.file_name() {
-            Some(n) => n.to_string_lossy().into_owned(),
+        match path.file_name() {
+            Some(_) => {}
             None => {
                 return Err(err(
                     io::ErrorKind::InvalidInput,
@@ -493,7 +584,7 @@ impl OutputTarget {
                 ))
             }
         }
-        let lock_path = path.with_file_name(format!("{name}.lock"));
+        let lock_path = sibling_with_suffix(path, "", ".lock");
         for _ in 0..8 {
             check_regular(
                 &lock_path,
@@ -539,9 +630,8 @@ impl OutputTarget {
             }
             {
                 use io::Write;
-                let cmd: Vec<String> = std::env::args().collect();
                 let _ = f.set_len(0);
-                let _ = writeln!(f, "pid {}: {}", std::process::id(), cmd.join(" "));
+                let _ = writeln!(f, "pid {}: {}", std::process::id(), command_line());
             }
             let target = OutputTarget {
                 path: path.to_path_buf(),
@@ -571,13 +661,7 @@ impl OutputTarget {
 
     /// The temporary sibling every write goes through (`.<name>.<pid>.tmp`).
     fn tmp_path(&self) -> PathBuf {
-        let name = self
-            .path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        self.path
-            .with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+        sibling_with_suffix(&self.path, ".", &format!(".{}.tmp", std::process::id()))
     }
 
     /// Replace the file with `bytes`: written to the temporary sibling, `fsync`ed,
@@ -717,6 +801,15 @@ pub struct CampaignWriter {
 /// the `NAME.COMPONENT` arguments of `sweep --frequency` and `plot`. The model compiler
 /// calls this for sensor names, so `check` rejects what the writers could not write.
 pub fn check_output_name(name: &str) -> Result<(), String> {
+    if name.len() > MAX_NAME_BYTES {
+        let head: String = name.chars().take(32).collect();
+        return Err(format!(
+            "name {head:?}… is {} bytes long and cannot be written to the output files: at \
+             most {MAX_NAME_BYTES} bytes (HDF5 link names of 64 KiB and more cannot be read \
+             back; 255 also keeps CSV columns and chart legends usable)",
+            name.len()
+        ));
+    }
     let bad = if name.trim().is_empty() {
         Some("it is empty")
     } else if name.contains('/') {

@@ -42,6 +42,53 @@ pub enum ModesError {
     IndefiniteMass(f64),
     #[error("linear algebra: {0}")]
     Linalg(#[from] LinalgError),
+    #[error("{0}")]
+    TooLarge(String),
+}
+
+/// Largest memory the dense modal analyses may take, in bytes (their peak, estimated as
+/// [`DENSE_MATRICES`] or [`DENSE_MATRICES_ROTATING`] n×n f64 matrices, n = free
+/// coordinates). The solvers are dense: memory grows as n² and time as n³ (3564
+/// coordinates, the 18-bay Mini-Mast, take about 8 minutes), so beyond this the run would
+/// either abort on a failed allocation or not finish. At the default 2 GiB: 5792
+/// coordinates at rest or preloaded, 4096 in the rotating frame.
+pub const DENSE_LIMIT_BYTES: u64 = 2 << 30;
+/// n×n matrices [`lowest_modes`] holds at its peak, rounded up: K and M, their symmetrised
+/// copies, the eigenvectors of M, the transformed K, the LU of K − σM and its scratch.
+pub const DENSE_MATRICES: f64 = 8.0;
+/// n×n matrices the rotating-frame analysis holds at its peak, rounded up: K, C, M and the
+/// steady-state metric; the condensed copies and M⁻¹K, M⁻¹C; the 2n×2n first-order form
+/// (4) and the eigen-solver's copy of it (4).
+pub const DENSE_MATRICES_ROTATING: f64 = 16.0;
+
+/// Refuses, before anything of that size is allocated, a dense modal analysis of `n`
+/// coordinates whose matrices would exceed [`DENSE_LIMIT_BYTES`]; the message names the
+/// size, the limit and what to do.
+pub fn check_dense_size(n: usize, rotating: bool) -> Result<(), String> {
+    let mats = if rotating {
+        DENSE_MATRICES_ROTATING
+    } else {
+        DENSE_MATRICES
+    };
+    let bytes = mats * 8.0 * (n as f64) * (n as f64);
+    if bytes <= DENSE_LIMIT_BYTES as f64 {
+        return Ok(());
+    }
+    let n_max = (DENSE_LIMIT_BYTES as f64 / (mats * 8.0)).sqrt().floor();
+    let kind = if rotating {
+        "rotating-frame modal analysis (first-order form 2n×2n)"
+    } else {
+        "modal analysis"
+    };
+    Err(format!(
+        "model too large for the dense {kind}: {n} free coordinates need about {:.1} GB \
+         ({mats} dense {n}×{n} matrices), over the limit of {:.1} GB ({} coordinates); \
+         use fewer elements (e.g. a smaller `--set elements=...`): the lowest modes \
+         converge long before that size",
+        bytes / 1e9,
+        DENSE_LIMIT_BYTES as f64 / 1e9,
+        n_max as u64
+    ))
 }
 
 #[derive(Debug, Clone)]
@@ -124,6 +171,7 @@ pub fn modes(model: &Model, s: &State) -> Result<Modes, ModesError> {
 /// The lowest `count` modes about state `s` (fewer if the model has fewer massive
 /// directions).
 pub fn lowest_modes(model: &Model, s: &State, count: usize) -> Result<Modes, ModesError> {
+    check_dense_size(model.n_eq, false).map_err(ModesError::TooLarge)?;
     let (k, m) = matrices(model, s);
     solve_pencil(&k, &m, model.n_eq, count)
 }

@@ -9,16 +9,18 @@
 //!   node translation: v = Ω×(x−c) + ξ̇,  a = Ω×(Ω×(x−c)) + 2Ω×ξ̇ + ξ̈,
 //!   node/body spin:   ω = Ω + ξ̇,         α = Ω×ξ̇ + ξ̈,
 //!   hinge angles:     v = ξ̇,             a = ξ̈,
-//! by central differences of the residual (step 1e-6 relative: truncation ~1e-12, round-off
-//! ~1e-10 of the force scale). The steady state comes from Newton on the same residual
+//! K as the assembler's analytic tangent of the elastic forces (the one Newton uses in
+//! statics and dynamics) plus central differences (step 1e-6) of the rest of the residual
+//! (inertia, gravity); C and M by central differences (see `Frame::stiffness` for why the
+//! elastic part must not be differenced). The steady state comes from Newton on the same residual
 //! with that Jacobian, shifted by a multiple of the mass matrix that fades with the
 //! residual (pseudo-transient continuation) so that it is the stable one. The quadratic eigenproblem is solved in first-order form after
 //! condensing massless coordinates; its eigenvalues are the frequencies in the rotating
 //! frame (for an articulated blade the rigid flap mode sits at exactly Ω).
 
-use crate::assembly::{Assembler, Coeffs};
+use crate::assembly::{Assembler, Coeffs, DenseSink};
 use crate::joint::{self, State};
-use crate::linalg::{dense_solve, general_eig, LinalgError};
+use crate::linalg::{dense_solve, general_eig, DenseLu, LinalgError};
 use crate::math::*;
 use crate::model::{ChainLink, DofMode, Model, NodeKin};
 
@@ -131,6 +133,10 @@ fn roles(model: &Model) -> Vec<Role> {
 
 struct Frame<'a> {
     model: &'a Model,
+    /// the model without gravity: its static residual (`Coeffs::statics(1.0)`) is the
+    /// elastic part of the rotating-frame residual (element forces, hinge springs, the
+    /// nodal loads at full value), whose tangent the assembler gives analytically
+    elastic: Model,
     asm: Assembler,
     spin: SteadySpin,
     roles: Vec<Role>,
@@ -213,22 +219,78 @@ impl Frame<'_> {
         self.r.clone()
     }
 
-    /// Dense ∂r/∂ξ (`Rate::Position`), ∂r/∂ξ̇ or ∂r/∂ξ̈ by central differences, row-major n×n.
+    /// The residual less its elastic part ([`Frame::elastic`]'s static residual at the
+    /// same state): inertia in the rotating frame, gravity, and the nodal loads' time
+    /// factor at t = 0 minus 1. Smooth on the scale of the geometry, not of EA/h.
+    fn inertial_residual(&mut self, xi: &[f64]) -> Vec<f64> {
+        let z = vec![0.0; xi.len()];
+        let s = self.state(xi, &z, &z);
+        let c = Coeffs::dynamic(0.0, 0.0, 0.0);
+        self.asm.evaluate(self.model, &s, c, &mut self.gen, None);
+        let mut r = vec![0.0; xi.len()];
+        crate::assembly::gather(self.model, &s, &self.gen, &mut r);
+        self.asm
+            .evaluate(&self.elastic, &s, Coeffs::statics(1.0), &mut self.gen, None);
+        crate::assembly::gather(&self.elastic, &s, &self.gen, &mut self.r);
+        for (a, b) in r.iter_mut().zip(&self.r) {
+            *a -= *b;
+        }
+        r
+    }
+
+    /// Dense ∂r/∂ξ, row-major n×n: the elastic part from the assembler's analytic tangent
+    /// (the one Newton uses in statics and dynamics), the rest by central differences of
+    /// [`Frame::inertial_residual`].
+    ///
+    /// Why not central differences of the whole residual: a step h across an element of
+    /// length ℓ stretches it by O(h²/ℓ), so the difference quotient of the elastic forces
+    /// carries a truncation error ~EA·h²/ℓ³ in the transverse stiffness, against a
+    /// centrifugal (geometric) stiffness ~T/ℓ that sets the low rotating-frame modes:
+    /// a relative error ~EA·h²/(T·ℓ²), i.e. growing as EA·n². Measured on a hinged blade
+    /// (EA = 1e10, 32 elements, Ω̄ = 1; rigid flap exactly Ω): the flap frequency's ω²
+    /// was off by 7.1, 7.4e-2, 7.3e-4 and ~3e-6 at h = 1e-5, 1e-6, 1e-7, 1e-8 — h², a
+    /// truncation, not round-off. The remainder differenced here is smooth on the scale
+    /// of the geometry, and its round-off (the elastic forces cancelling) is ~ε·EA/ℓ per
+    /// entry, independent of h.
+    fn stiffness(&mut self) -> Vec<f64> {
+        let n = self.model.n_eq;
+        let z = vec![0.0; n];
+        let mut mat = vec![0.0; n * n];
+        let s = self.state(&z, &z, &z);
+        self.asm.evaluate(
+            &self.elastic,
+            &s,
+            Coeffs::statics(1.0),
+            &mut self.gen,
+            Some(&mut DenseSink { n, a: &mut mat }),
+        );
+        let h = 1e-6;
+        for j in 0..n {
+            let mut p = z.clone();
+            p[j] = h;
+            let rp = self.inertial_residual(&p);
+            p[j] = -h;
+            let rm = self.inertial_residual(&p);
+            for i in 0..n {
+                mat[i * n + j] += (rp[i] - rm[i]) / (2.0 * h);
+            }
+        }
+        mat
+    }
+
+    /// Dense ∂r/∂ξ̇ or ∂r/∂ξ̈ by central differences (exact up to round-off: the residual
+    /// is quadratic in ξ̇ and linear in ξ̈), row-major n×n. ∂r/∂ξ: [`Frame::stiffness`].
     fn jacobian(&mut self, wrt: Rate) -> Vec<f64> {
         let n = self.model.n_eq;
         let z = vec![0.0; n];
         let mut mat = vec![0.0; n * n];
-        let h = match wrt {
-            Rate::Position => 1e-6,
-            Rate::Velocity | Rate::Acceleration => 1e-4,
-        };
+        let h = 1e-4;
         for j in 0..n {
             let mut p = z.clone();
             p[j] = h;
             let mut mneg = z.clone();
             mneg[j] = -h;
             let (rp, rm) = match wrt {
-                Rate::Position => (self.residual(&p, &z, &z), self.residual(&mneg, &z, &z)),
                 Rate::Velocity => (self.residual(&z, &p, &z), self.residual(&z, &mneg, &z)),
                 Rate::Acceleration => (self.residual(&z, &z, &p), self.residual(&z, &z, &mneg)),
             };
@@ -243,7 +305,6 @@ impl Frame<'_> {
 /// Which rate of the rotating-frame perturbation a Jacobian is taken with respect to.
 #[derive(Clone, Copy, Debug)]
 enum Rate {
-    Position,
     Velocity,
     Acceleration,
 }
@@ -308,7 +369,7 @@ pub fn rotating_modes_with_shapes(
 ) -> Result<RotatingModes, LinalgError> {
     let (mut fr, iters, converged) = steady_frame(model, spin)?;
     let n = model.n_eq;
-    let k = fr.jacobian(Rate::Position);
+    let k = fr.stiffness();
     let c = fr.jacobian(Rate::Velocity);
     let m = fr.jacobian(Rate::Acceleration);
     let qm = quadratic_modes(&k, &c, &m, n, shapes)?;
@@ -344,8 +405,11 @@ fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bo
     let mut base = State::new(model);
     joint::apply_drivers(model, &mut base, 0.0);
     let n = model.n_eq;
+    let mut elastic = model.clone();
+    elastic.gravity = [0.0; 3];
     let mut fr = Frame {
         model,
+        elastic,
         asm: Assembler::new(model),
         spin,
         roles: roles(model),
@@ -368,6 +432,28 @@ fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bo
     // Newton's quadratic convergence at the end.
     let m_metric = fr.jacobian(Rate::Acceleration);
     let mu0 = dot(spin.omega, spin.omega);
+    // The residual's round-off floor: a position rounded to ε·|x| moves the elastic force
+    // by up to max|K_ii|·ε·|x| (axial EA/ℓ). On a hub barely turning (Ω = 1e-6) the
+    // centrifugal forces, hence 1e-10 of the force scale, are far below it, and Newton
+    // chasing the noise along a flap direction stiffened only by Ω²·I swung a hinged
+    // blade about (rigid flap 0.12 Hz for 1.6e-7); within this floor the state is an
+    // equilibrium as far as f64 can tell.
+    let noise = {
+        let s = fr.state(&z, &z, &z);
+        let mut k = vec![0.0; n * n];
+        fr.asm.evaluate(
+            &fr.elastic,
+            &s,
+            Coeffs::statics(1.0),
+            &mut fr.gen,
+            Some(&mut DenseSink { n, a: &mut k }),
+        );
+        let kdiag = (0..n).fold(0.0f64, |m, i| m.max(k[i * n + i].abs()));
+        let xmax = (0..model.x0.len()).fold(0.0f64, |m, nd| {
+            m.max(norm(sub(joint::node_position(model, &s, nd), spin.center)))
+        });
+        f64::EPSILON * kdiag * xmax
+    };
     let mut res0 = None;
     let mut iters = 0;
     let mut converged = false;
@@ -380,18 +466,45 @@ fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bo
             fr.asm.evaluate(model, &s, c, &mut fr.gen, None).force_scale
         };
         let res = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        if res <= 1e-10 * scale_f.max(f64::MIN_POSITIVE) {
+        if res <= (1e-10 * scale_f).max(noise).max(f64::MIN_POSITIVE) {
             converged = true;
             break;
         }
         let res0 = *res0.get_or_insert(res);
         let mu = mu0 * (res / res0).min(1.0);
-        let mut k = fr.jacobian(Rate::Position);
-        for (kij, mij) in k.iter_mut().zip(&m_metric) {
-            *kij += mu * mij;
-        }
-        let mut dx: Vec<f64> = r.iter().map(|x| -x).collect();
-        dense_solve(&k, n, &mut dx)?;
+        let kt = fr.stiffness();
+        // Solved by an LU that rejects only zero pivots (`DenseLu`): K is graded (axial
+        // rows EA/ℓ, a hinge's flap row Ω²·I), and on a hub barely turning the flap pivot
+        // is legitimately far below n·ε·max|K|, where `dense_solve` would call it singular.
+        // Should the pivot be exactly zero or the step not finite (a motion with neither
+        // stiffness nor centrifugal restoring force), μ is raised from a floor at which
+        // μ·M clears n·ε·max|K| 1000-fold: a shifted step is still a descent step. (The
+        // central differences of the whole residual used to hide such motions behind
+        // their truncation error ~EA·h²/ℓ³, see `Frame::stiffness`.)
+        let kmax = kt.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        let mmax = m_metric.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        let floor = if mmax > 0.0 {
+            1e3 * n as f64 * f64::EPSILON * kmax / mmax
+        } else {
+            0.0
+        };
+        let mut mu_try = mu;
+        let mut tries = 0;
+        let mut dx = loop {
+            let mut k = kt.clone();
+            for (kij, mij) in k.iter_mut().zip(&m_metric) {
+                *kij += mu_try * mij;
+            }
+            let mut dx: Vec<f64> = r.iter().map(|x| -x).collect();
+            match DenseLu::new(&k, n).and_then(|lu| lu.solve(&mut dx)) {
+                Ok(()) => break dx,
+                Err(_) if tries < 4 && floor > 0.0 => {
+                    tries += 1;
+                    mu_try = (100.0 * mu_try).max(floor);
+                }
+                Err(e) => return Err(e),
+            }
+        };
         crate::assembly::limit_rotation_step(fr.model, &mut dx, 0.5);
         let mut b = fr.base.clone();
         joint::apply_increment(model, &mut b, &dx);
@@ -827,6 +940,19 @@ pub fn quadratic_modes(
         }
     }
     let ev = general_eig(&a, n2)?;
+    // A zero-frequency motion (a free hinge on a hub barely turning: λ = ±iΩ, Ω = 1e-6)
+    // comes out of the eigen-solver as a pair within its round-off, ~√(ε·max|A|), of 0,
+    // as often real as imaginary; a real pair is reported as one 0 Hz mode rather than
+    // dropped, so the modes above keep their places in the list.
+    let amax = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let tol0 = 10.0 * (f64::EPSILON * amax).sqrt();
+    let mut reals: Vec<f64> = ev
+        .iter()
+        .filter(|(re, im)| *im == 0.0 && re.abs() <= tol0)
+        .map(|(re, _)| *re)
+        .collect();
+    reals.sort_by(|p, q| p.abs().total_cmp(&q.abs()));
+    reals.truncate(reals.len().div_ceil(2));
     let mut modes: Vec<(f64, f64, f64, f64)> = ev
         .into_iter()
         .filter(|(_, im)| *im > 0.0)
@@ -834,6 +960,7 @@ pub fn quadratic_modes(
             let wn = (re * re + im * im).sqrt();
             (im / (2.0 * std::f64::consts::PI), -re / wn, re, im)
         })
+        .chain(reals.into_iter().map(|re| (0.0, 0.0, re, 0.0)))
         .collect();
     modes.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut out_shapes = Vec::new();

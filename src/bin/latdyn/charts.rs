@@ -39,9 +39,9 @@ pub(crate) fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         )
     })?;
     let report = bench::run_suite(&opts, &|line| eprintln!("{line}"))?;
-    let command = std::env::args()
+    let command = std::env::args_os()
         .skip(1)
-        .fold("latdyn".to_string(), |a, b| a + " " + &b);
+        .fold("latdyn".to_string(), |a, b| a + " " + &b.to_string_lossy());
     let svg = args.out.join("work_precision.png");
     let has_runs = report.problems.iter().any(|p| !p.runs.is_empty());
     if has_runs {
@@ -80,7 +80,12 @@ pub(crate) fn plot(args: &PlotArgs) -> anyhow::Result<()> {
     // locked, atomic replace): it is drawn to a sibling and moved into place at the end
     let target = claim_output(&args.output, &[(args.input.as_path(), "the campaign file")])?;
     let staging = Staging(staging_path(&args.output));
-    let summary = plot_to(args, &opts, &c, &staging.0)?;
+    let summary =
+        plot_to(args, &opts, &c, &staging.0).map_err(|e| match e.downcast::<lp::PlotError>() {
+            Ok(lp::PlotError::Data(m)) => anyhow!("{}: {m}", args.input.display()),
+            Ok(other) => other.into(),
+            Err(e) => e,
+        })?;
     let bytes = std::fs::read(&staging.0)
         .map_err(|e| anyhow!("{}: cannot read the drawn chart: {e}", staging.0.display()))?;
     target

@@ -11,7 +11,10 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
         return modes_vary(args, range);
     }
     let m = args.model.load()?;
-    if let Some(spin) = latdyn::solver::rotating::find_spin(&m) {
+    let spin = latdyn::solver::rotating::find_spin(&m);
+    latdyn::solver::modes::check_dense_size(m.n_eq, spin.is_some())
+        .map_err(|e| anyhow!("{}: {e}", m.path))?;
+    if let Some(spin) = spin {
         return rotating_modes(args, &m, spin);
     }
     let preload = match args.about.as_str() {
@@ -178,6 +181,8 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
             ));
         }
         free_dofs = m.n_eq;
+        latdyn::solver::modes::check_dense_size(m.n_eq, true)
+            .map_err(|e| anyhow!("{}: {e}", m.path))?;
         let rm = rotating::rotating_modes_with_shapes(&m, spin, want)
             .with_context(|| format!("{}: rotating-frame modes at {}={v}", m.path, range.name))?;
         if let Some(w) = rm.steady_warning() {

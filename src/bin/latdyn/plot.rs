@@ -35,6 +35,10 @@ pub enum PlotError {
     /// An invalid request (option values, image format).
     #[error("{0}")]
     Invalid(String),
+    /// The data cannot be drawn (nothing finite, values beyond what an axis can span);
+    /// the caller names the file.
+    #[error("{0}")]
+    Data(String),
     /// Drawing or writing the image failed.
     #[error("{}: {message}", path.display())]
     Draw { path: PathBuf, message: String },
@@ -420,7 +424,10 @@ impl Campaign {
             )));
         }
         let ds = self.sensor_dataset(name)?;
-        let m = self.reader.sensor_meta(name, &ds);
+        let m = self
+            .reader
+            .sensor_meta(name, &ds)
+            .map_err(|e| self.err(e))?;
         Ok(SensorInfo {
             name: m.name,
             components: m.components,
@@ -499,6 +506,17 @@ impl Campaign {
             )));
         }
         let (nt, nc) = (shape[1], shape[2]);
+        // sizes checked before the read allocates nt × nc values: the time grid was read
+        // whole, so a shape that disagrees with it is a claim, not data
+        if nt > self.time.len() || nc > layout::MAX_SENSOR_COMPONENTS || ch.component >= nc {
+            return Err(self.err(format!(
+                "/sensors/{} has shape {shape:?}: expected at most {} output times (/time) \
+                 and {} components",
+                ch.sensor,
+                self.time.len(),
+                layout::MAX_SENSOR_COMPONENTS
+            )));
+        }
         if nt == 0 {
             return Ok(Vec::new());
         }
@@ -1123,8 +1141,22 @@ fn finish(
         .iter()
         .any(|l| l.points.iter().any(|p| p.0.is_finite() && p.1.is_finite()))
     {
-        return Err(PlotError::Invalid(
-            "nothing to draw: every selected sample is NaN (variants not run yet?)".into(),
+        return Err(PlotError::Data(
+            "nothing to draw: no selected sample is finite (they are NaN, not written: \
+             variants not run yet?, or infinite)"
+                .into(),
+        ));
+    }
+    check_axis_ranges(&fig)?;
+    let infinite: usize = fig
+        .lines
+        .iter()
+        .flat_map(|l| l.points.iter())
+        .filter(|p| p.0.is_infinite() || p.1.is_infinite())
+        .count();
+    if infinite > 0 {
+        summary.notes.push(format!(
+            "{infinite} infinite sample(s) not drawn (the lines break there)"
         ));
     }
     register_fonts();
@@ -1172,6 +1204,76 @@ fn finish(
     Ok(summary)
 }
 
+/// Largest magnitude an axis end may have. plotters' tick search scales the axis width
+/// by powers of ten and loops forever once that overflows (an axis from 0 to 1.7e308, or
+/// ±1e308): keep eight decades of headroom below `f64::MAX`.
+pub const MAX_AXIS_MAGNITUDE: f64 = 1e300;
+
+/// The axis ranges `draw` will use: the figure's own, or the padded range of the data.
+fn axis_ranges(fig: &Figure) -> ((f64, f64), (f64, f64)) {
+    let x = fig.x_range.unwrap_or_else(|| {
+        padded_range(fig.lines.iter().flat_map(|l| l.points.iter().map(|p| p.0)))
+    });
+    let y = fig.y_range.unwrap_or_else(|| {
+        padded_range(fig.lines.iter().flat_map(|l| l.points.iter().map(|p| p.1)))
+    });
+    (x, y)
+}
+
+/// Refuse axes no chart can show (values beyond ±[`MAX_AXIS_MAGNITUDE`]), naming the
+/// line and the value, rather than hang in the tick computation.
+fn check_axis_ranges(fig: &Figure) -> Result<(), PlotError> {
+    let (xr, yr) = axis_ranges(fig);
+    for (axis, r, given, pick) in [
+        ("x", xr, fig.x_range.is_some(), 0usize),
+        ("y", yr, fig.y_range.is_some(), 1usize),
+    ] {
+        let coord = |p: &(f64, f64)| if pick == 0 { p.0 } else { p.1 };
+        // data within ±MAX pad to an axis within ±1.1 MAX; a given range may reach 10 MAX
+        let within = if given {
+            r.0.is_finite()
+                && r.1.is_finite()
+                && r.0.abs().max(r.1.abs()) <= 10.0 * MAX_AXIS_MAGNITUDE
+        } else {
+            fig.lines
+                .iter()
+                .flat_map(|l| l.points.iter().map(coord))
+                .all(|v| !v.is_finite() || v.abs() <= MAX_AXIS_MAGNITUDE)
+        };
+        if within {
+            continue;
+        }
+        // the data value that took the axis there (largest finite magnitude)
+        let worst = fig
+            .lines
+            .iter()
+            .flat_map(|l| l.points.iter().map(move |p| (l, coord(p))))
+            .filter(|(_, v)| v.is_finite())
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+        let axis_name = if axis == "x" {
+            &fig.x_label
+        } else {
+            &fig.y_label
+        };
+        let what = match worst {
+            Some((l, v)) if !given => format!(
+                "line \"{}\" reaches {v:e} on the {axis} axis ({axis_name})",
+                l.label
+            ),
+            _ => format!(
+                "the {axis} axis ({axis_name}) would span {:e} to {:e}",
+                r.0, r.1
+            ),
+        };
+        return Err(PlotError::Data(format!(
+            "cannot draw: {what}, beyond ±{MAX_AXIS_MAGNITUDE:e}, the widest range a chart \
+             axis can show; plot components or variants whose values stay within it \
+             (e.g. --sensor NAME.COMPONENT)"
+        )));
+    }
+    Ok(())
+}
+
 /// Range of the finite values, padded by 5 % (or ±1 / ±10 % when degenerate).
 fn padded_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -1213,12 +1315,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> Resu
     let (w, _h) = root.dim_in_pixel();
     let fs = (w as f64 / 1000.0 * 16.0).clamp(11.0, 32.0);
     let fsi = fs.round() as u32;
-    let x_range = fig.x_range.unwrap_or_else(|| {
-        padded_range(fig.lines.iter().flat_map(|l| l.points.iter().map(|p| p.0)))
-    });
-    let y_range = fig.y_range.unwrap_or_else(|| {
-        padded_range(fig.lines.iter().flat_map(|l| l.points.iter().map(|p| p.1)))
-    });
+    let (x_range, y_range) = axis_ranges(fig);
     let log = fig.log_axes;
     // log ticks fall between decades too: two significant digits read better there
     let tick = |v: f64| {

@@ -37,11 +37,7 @@ impl RunSink {
         } else {
             let mut w = latdyn::output::CampaignWriter::create_at(
                 target,
-                &latdyn::output::CampaignMeta::single_run(
-                    m,
-                    stage,
-                    std::env::args().collect::<Vec<_>>().join(" "),
-                ),
+                &latdyn::output::CampaignMeta::single_run(m, stage, latdyn::output::command_line()),
             )?;
             let running = latdyn::output::VariantStatus {
                 state: latdyn::output::VariantState::Running,

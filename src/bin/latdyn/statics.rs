@@ -70,12 +70,7 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     let wall = t0.elapsed().as_secs_f64();
     let mut out_err = None;
     if let Some(t) = target {
-        let meta = path::campaign_meta(
-            &[&m],
-            r.lambda.clone(),
-            std::env::args().collect::<Vec<_>>().join(" "),
-            1,
-        );
+        let meta = path::campaign_meta(&[&m], r.lambda.clone(), latdyn::output::command_line(), 1);
         let written = latdyn::output::CampaignWriter::create_at(t, &meta).and_then(|mut w| {
             path::write_variant(&mut w, 0, &r, wall)?;
             w.finish("complete")

@@ -32,7 +32,7 @@ pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
         .collect();
     let target = claim_output(&args.output, &shards)?;
     let mut report = MergeReport::default();
-    let command_line = std::env::args().collect::<Vec<_>>().join(" ");
+    let command_line = latdyn::output::command_line();
     let result = campaign::merge(&args.shards, target, &command_line, &mut report);
     let (code, message) = match &result {
         Ok(()) if !report.missing.is_empty() || !report.interrupted.is_empty() => (
@@ -196,7 +196,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         shard: args.shard,
         accuracy: args.accuracy,
         frequency_sensor,
-        command_line: std::env::args().collect::<Vec<_>>().join(" "),
+        command_line: latdyn::output::command_line(),
     };
     if args.plan {
         return sweep_plan(args, &c, &stage);
@@ -682,7 +682,7 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
         let mut meta = path::campaign_meta(
             &refs,
             (0..npts).map(|i| i as f64).collect(),
-            std::env::args().collect::<Vec<_>>().join(" "),
+            latdyn::output::command_line(),
             threads,
         );
         meta.global_index = chosen.clone();

@@ -1,0 +1,168 @@
+//! `merge` and `sweep --resume` copy sensor chunks as stored: a shard whose /sensors
+//! datasets were rewritten by another tool (no shuffle, no compression, fewer components,
+//! a sensor missing) is refused with exit 2 and the file, dataset and difference named,
+//! never merged into garbage (exit 0 with denormals) nor reported as exit 5.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("latdyn_foreign_{}_{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run latdyn")
+}
+
+fn model() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("models/pendulum.toml")
+        .display()
+        .to_string()
+}
+
+const SWEEP: [&str; 4] = ["--set", "t_end=0.05", "--vary", "theta0=0.1:0.5:4"];
+
+fn shards(dir: &Path) {
+    let m = model();
+    for k in ["1/2", "2/2"] {
+        let out_name = format!("sh{}.h5", &k[..1]);
+        let mut args = vec!["sweep", m.as_str()];
+        args.extend(SWEEP);
+        args.extend(["--shard", k, "-o", out_name.as_str()]);
+        let out = run(dir, &args);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+/// Copy `src` to `dst`, rewriting every /sensors dataset with h5py as `how` says.
+fn rewrite(dir: &Path, src: &str, dst: &str, how: &str) {
+    let body = match how {
+        "noshuffle" => "ds = f.create_dataset(n, data=a, chunks=ch, compression='gzip', compression_opts=4, shuffle=False)",
+        "uncompressed" => "ds = f.create_dataset(n, data=a, chunks=ch)",
+        "fewer_components" => "a = a[:, :, :3]; ds = f.create_dataset(n, data=a, chunks=(1,) + a.shape[1:], compression='gzip', shuffle=True)",
+        "other_chunks" => "ds = f.create_dataset(n, data=a, chunks=(1, 1, a.shape[2]), compression='gzip', shuffle=True)",
+        _ => unreachable!(),
+    };
+    let script = format!(
+        "import h5py, shutil\nshutil.copy('{src}', '{dst}')\nwith h5py.File('{dst}', 'r+') as f:\n    for s in list(f['sensors'].keys()):\n        n = 'sensors/' + s; d = f[n]; a = d[:]; at = dict(d.attrs); ch = d.chunks\n        del f[n]\n        {body}\n        for k, v in at.items(): ds.attrs[k] = v\n"
+    );
+    let st = Command::new("python3")
+        .args(["-c", &script])
+        .current_dir(dir)
+        .status()
+        .unwrap();
+    assert!(st.success(), "h5py rewrite {how}");
+}
+
+fn refused(out: &Output, what: &str, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{what}: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{what}: no {n:?} in {err}");
+    }
+    assert!(!err.contains("internal error"), "{what}: {err}");
+}
+
+#[test]
+fn merge_refuses_shards_whose_sensor_layout_differs_with_exit_2() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("merge");
+    shards(&dir);
+    for (how, needle) in [
+        ("noshuffle", "filter pipeline is [deflate]"),
+        ("uncompressed", "filter pipeline is empty"),
+        ("fewer_components", "components"),
+        ("other_chunks", "chunks"),
+    ] {
+        let bad = format!("{how}.h5");
+        rewrite(&dir, "sh2.h5", &bad, how);
+        let out = run(&dir, &["merge", "sh1.h5", &bad, "-o", "m.h5", "--json"]);
+        refused(&out, how, &[&bad, "/sensors/"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{how}: no {needle:?} in {err}");
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["status"], "refused", "{how}");
+        assert!(
+            !dir.join("m.h5").exists(),
+            "{how}: a merged file was written"
+        );
+    }
+    // the shards as latdyn wrote them still merge
+    let out = run(&dir, &["merge", "sh1.h5", "sh2.h5", "-o", "m.h5"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn merge_refuses_a_shard_without_a_sensor_with_exit_2() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("missing");
+    shards(&dir);
+    let script = "import h5py, shutil\nshutil.copy('sh2.h5', 'ms.h5')\nwith h5py.File('ms.h5', 'r+') as f:\n    del f['sensors/energy']\n";
+    assert!(Command::new("python3")
+        .args(["-c", script])
+        .current_dir(&dir)
+        .status()
+        .unwrap()
+        .success());
+    let out = run(&dir, &["merge", "sh1.h5", "ms.h5", "-o", "m.h5"]);
+    refused(&out, "missing sensor", &["ms.h5", "energy"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn resume_refuses_a_file_whose_sensors_were_rewritten_without_shuffle() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("resume");
+    shards(&dir);
+    let out = run(&dir, &["merge", "sh1.h5", "sh2.h5", "-o", "m.h5"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    rewrite(&dir, "m.h5", "r.h5", "noshuffle");
+    let before = std::fs::read(dir.join("r.h5")).unwrap();
+    let m = model();
+    let mut args = vec!["sweep", m.as_str()];
+    args.extend(SWEEP);
+    args.extend(["--resume", "r.h5"]);
+    let out = run(&dir, &args);
+    refused(&out, "resume", &["r.h5", "/sensors/", "filter pipeline"]);
+    assert_eq!(
+        std::fs::read(dir.join("r.h5")).unwrap(),
+        before,
+        "the file was changed"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
