@@ -367,6 +367,8 @@ pub fn rotating_modes_with_shapes(
     spin: SteadySpin,
     shapes: usize,
 ) -> Result<RotatingModes, LinalgError> {
+    // before the dense matrices (`sweep --frequency` comes here without the CLI's check)
+    crate::solver::modes::check_dense_size(model.n_eq, true).map_err(LinalgError::Other)?;
     let (mut fr, iters, converged) = steady_frame(model, spin)?;
     let n = model.n_eq;
     let k = fr.stiffness();
