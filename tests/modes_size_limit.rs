@@ -68,3 +68,26 @@ fn modes_of_a_model_too_large_for_dense_matrices_exit_2_before_allocating() {
         "rotating-frame",
     );
 }
+
+#[test]
+fn a_steady_start_too_large_for_its_dense_solve_fails_at_once_not_after_an_hour() {
+    // `[initial] steady = true` finds the steady rotation by Newton on dense matrices:
+    // with 3 000 elements (18 000 coordinates) a run spent 40 minutes in it before its
+    // first step; it now fails at once as a run that could not start (exit 3)
+    let t = Instant::now();
+    let out = latdyn(&[
+        "run",
+        "models/rotating_cantilever.toml",
+        "--set",
+        "elements=3000",
+        "--set",
+        "t_end=0.001",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("`[initial] steady`") && err.contains("too large") && err.contains("18000"),
+        "{err}"
+    );
+    assert!(t.elapsed().as_secs_f64() < 30.0);
+}
