@@ -203,12 +203,6 @@ pub struct ReadError {
     pub message: String,
 }
 
-fn text(bytes: Vec<u8>) -> String {
-    String::from_utf8_lossy(&bytes)
-        .trim_end_matches('\0')
-        .to_string()
-}
-
 impl CampaignFile {
     /// Open a sweep or shard file and read its identity and per-variant status. Files
     /// without `campaign_hash` (written by `run`, `statics --path`, `sweep --path` or a
@@ -409,36 +403,11 @@ impl CampaignFile {
             path: self.path.clone(),
             message,
         };
-        let ds = |name: &str| {
-            self.file
-                .file()
-                .dataset(&format!("{}/{name}", layout::VERIFICATION))
-                .map_err(|e| err(format!("no /verification/{name} ({e})")))
-        };
-        let f64s = |name: &str| -> Result<Vec<f64>, ReadError> {
-            let d = ds(name)?;
-            if d.total_elements() == 0 {
-                return Ok(Vec::new());
-            }
-            d.read_raw::<f64>()
-                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
-        };
-        let i64s = |name: &str| -> Result<Vec<i64>, ReadError> {
-            let d = ds(name)?;
-            if d.total_elements() == 0 {
-                return Ok(Vec::new());
-            }
-            d.read_numeric_as::<i64>()
-                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
-        };
-        let strings = |name: &str| -> Result<Vec<String>, ReadError> {
-            let d = ds(name)?;
-            if d.total_elements() == 0 {
-                return Ok(Vec::new());
-            }
-            d.read_strings()
-                .map_err(|e| err(format!("reading /verification/{name}: {e}")))
-        };
+        // through the reader, which checks the size each dataset claims before reading it
+        let path = |name: &str| format!("{}/{name}", layout::VERIFICATION);
+        let f64s = |name: &str| self.file.f64s(&path(name)).map_err(err);
+        let i64s = |name: &str| self.file.i64s(&path(name)).map_err(err);
+        let strings = |name: &str| self.file.strings(&path(name)).map_err(err);
         let one = |name: &str| -> Result<f64, ReadError> {
             f64s(name)?
                 .first()
@@ -452,10 +421,7 @@ impl CampaignFile {
             .collect();
         let mut out = crate::output::VerificationData {
             target: one("target")?,
-            target_source: ds("target_source")?
-                .read_raw_bytes()
-                .map(text)
-                .map_err(|e| err(format!("reading /verification/target_source: {e}")))?,
+            target_source: self.file.scalar_text(&path("target_source")).map_err(err)?,
             variants: i64s("variants")?
                 .into_iter()
                 .map(|g| g.max(0) as usize)
@@ -872,11 +838,13 @@ pub struct Resume {
 /// campaign definition than `c` run on `stage` (naming what differs), then prepares the
 /// file's variants that are not completed (pending, running, failed, interrupted, or
 /// missing in a merge) and reopens the file with their rows cleared (state pending, NaN
-/// samples); every completed row keeps its stored bytes.
+/// samples); every completed row keeps its stored bytes. A variant that does not compile
+/// is named as `origin` says (see [`crate::ensemble::Origin`]).
 pub fn resume(
     target: OutputTarget,
     c: &crate::ensemble::Campaign,
     stage: &crate::ensemble::Stage,
+    origin: &crate::ensemble::Origin,
 ) -> Result<Resume, MergeError> {
     let f = CampaignFile::open(target.path())?;
     let rerun: Vec<bool> = f
@@ -891,8 +859,10 @@ pub fn resume(
         .map(|&r| f.global_index[r])
         .filter(|&g| g < c.variants.len())
         .collect();
-    let prepared = crate::ensemble::prepare_rows(c, gis)
-        .map_err(|e| MergeError::Refused(format!("--resume {}: {e}", f.path.display())))?;
+    let prepared = crate::ensemble::prepare_rows(c, gis).map_err(|e| {
+        let e = origin.name(e, &c.variants);
+        MergeError::Refused(format!("--resume {}: {e}", f.path.display()))
+    })?;
     let now = crate::ensemble::identify(c, &prepared, stage)
         .map_err(|e| MergeError::Refused(e.to_string()))?;
     if now.hash != f.info.hash {
@@ -1033,7 +1003,8 @@ pub fn probe(
         let t0 = std::time::Instant::now();
         let mut sets = c.base.clone();
         sets.extend(c.variants[g].iter().cloned());
-        let mut m = crate::model::load(&c.model_path, &sets)?;
+        let mut m = crate::model::load(&c.model_path, &sets)
+            .map_err(|e| crate::ensemble::EnsembleError::variant(g, &c.variants[g], e))?;
         if c.accuracy.is_some() {
             m.solver.accuracy = c.accuracy;
         }

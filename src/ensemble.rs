@@ -48,6 +48,98 @@ pub enum EnsembleError {
     Output(#[from] OutputError),
     #[error("{0}")]
     Invalid(String),
+    /// A problem of one variant (its model does not compile with its values, or it does
+    /// not fit the others): `at` names the variant, by its index and values (see
+    /// [`Origin::name`] for where the user gave them), `message` is the problem (a model
+    /// error keeps the model's file, line and field).
+    #[error("{at}: {message}")]
+    Variant {
+        index: usize,
+        at: String,
+        message: String,
+    },
+}
+
+impl EnsembleError {
+    /// A problem of variant `index` with parameter values `values`.
+    pub fn variant(index: usize, values: &[(String, f64)], message: impl ToString) -> Self {
+        EnsembleError::Variant {
+            index,
+            at: Origin::default().describe(index, values),
+            message: message.to_string(),
+        }
+    }
+}
+
+/// One variant's parameter values, by name (a `--variants` row, a `--vary` grid point, or
+/// both).
+pub type Values = Vec<(String, f64)>;
+
+/// Where the variants of a sweep come from (see [`variants_with_origin`]), to name a
+/// variant in a message the way the user gave it: a campaign of 1000 rows whose third
+/// one breaks the model must say which row, not only the model's line. The variants are
+/// the `--variants` rows (in file order) each crossed with the `--vary` grid (see
+/// [`variants`]); the default knows nothing and names a variant by its index and values.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Origin {
+    /// the `--variants` file and the line of each of its rows, in order (1-based, counting
+    /// the header, comments and blank lines as the file has them)
+    pub csv: Option<(PathBuf, Vec<usize>)>,
+    /// the leading values of each variant that come from its CSV row (its columns); the
+    /// others are its point of the `--vary` grid
+    pub csv_columns: usize,
+    /// points of the `--vary` grid (1 without `--vary`; 0: unknown)
+    pub grid_points: usize,
+}
+
+impl Origin {
+    /// Variant `index` with parameter values `values`, as a message names it:
+    /// `variant 7 (--variants rows.csv line 4: EI=-1; --vary L=2)`.
+    pub fn describe(&self, index: usize, values: &[(String, f64)]) -> String {
+        let line = match (&self.csv, self.grid_points) {
+            (Some((path, lines)), g) if g > 0 => lines
+                .get(index / g)
+                .map(|l| (path, *l))
+                .filter(|_| self.csv_columns <= values.len()),
+            _ => None,
+        };
+        let parts = match line {
+            Some((path, l)) => {
+                let (row, point) = values.split_at(self.csv_columns);
+                let mut s = format!("--variants {} line {l}", path.display());
+                if !row.is_empty() {
+                    s += &format!(": {}", describe(row));
+                }
+                if !point.is_empty() {
+                    s += &format!("; --vary {}", describe(point));
+                }
+                s
+            }
+            None if self.grid_points > 0 && self.csv.is_none() && !values.is_empty() => {
+                format!("--vary {}", describe(values))
+            }
+            None => describe(values),
+        };
+        if parts.is_empty() {
+            format!("variant {index}")
+        } else {
+            format!("variant {index} ({parts})")
+        }
+    }
+
+    /// `e`, when it is the problem of one variant ([`EnsembleError::Variant`]), with that
+    /// variant named by [`Origin::describe`] (`variants`: the campaign's, by global
+    /// index); other errors as they are.
+    pub fn name(&self, e: EnsembleError, variants: &[Vec<(String, f64)>]) -> EnsembleError {
+        match e {
+            EnsembleError::Variant { index, at, message } => EnsembleError::Variant {
+                index,
+                at: variants.get(index).map_or(at, |v| self.describe(index, v)),
+                message,
+            },
+            e => e,
+        }
+    }
 }
 
 /// Shortest time between two flushes of the campaign file [s]: each flush rewrites the
@@ -143,6 +235,17 @@ pub fn variants(
     vary: &[Range],
     csv: Option<&Path>,
 ) -> Result<Vec<Vec<(String, f64)>>, EnsembleError> {
+    variants_with_origin(model_path, base, vary, csv).map(|(v, _)| v)
+}
+
+/// [`variants`], with where each one comes from (its CSV line, its grid point), for
+/// messages about one variant (see [`Origin::name`]).
+pub fn variants_with_origin(
+    model_path: &Path,
+    base: &[(String, f64)],
+    vary: &[Range],
+    csv: Option<&Path>,
+) -> Result<(Vec<Values>, Origin), EnsembleError> {
     let lim = model::Limits::from_env().map_err(EnsembleError::Invalid)?;
     for (i, r) in vary.iter().enumerate() {
         if let Some(first) = vary[..i].iter().find(|x| x.name == r.name) {
@@ -176,9 +279,12 @@ pub fn variants(
     if grid_count > lim.variants as f64 {
         return Err(too_many(grid_count, "--vary: variants of the grid"));
     }
-    let rows = match csv {
-        Some(p) => Some(read_variants_csv(p)?),
-        None => None,
+    let (rows, lines) = match csv {
+        Some(p) => {
+            let (rows, lines) = read_variants_table(p)?;
+            (Some(rows), lines)
+        }
+        None => (None, Vec::new()),
     };
     if let (Some(rows), Some(p)) = (&rows, csv) {
         if let Some(r) = vary
@@ -253,7 +359,12 @@ pub fn variants(
         )));
     }
     let g = grid(vary);
-    Ok(match rows {
+    let origin = Origin {
+        csv_columns: rows.as_ref().map_or(0, |r| r[0].len()),
+        csv: csv.map(|p| (p.to_path_buf(), lines)),
+        grid_points: g.len(),
+    };
+    let list = match rows {
         None => g,
         // the CSV rows crossed with the --vary grid
         Some(rows) => rows
@@ -266,7 +377,8 @@ pub fn variants(
                 })
             })
             .collect(),
-    })
+    };
+    Ok((list, origin))
 }
 
 /// The full grid of several ranges (last range varies fastest); callers check its size
@@ -298,6 +410,12 @@ fn unquote(field: &str) -> &str {
 /// Variants from a CSV file: a header of parameter names, one row of values per variant
 /// (fields may be quoted; a leading byte-order mark is skipped).
 pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, EnsembleError> {
+    read_variants_table(path).map(|(rows, _)| rows)
+}
+
+/// [`read_variants_csv`], with the line of each row in the file (1-based, the header and
+/// any comment or blank line counted).
+fn read_variants_table(path: &Path) -> Result<(Vec<Values>, Vec<usize>), EnsembleError> {
     let lim = model::Limits::from_env().map_err(EnsembleError::Invalid)?;
     let text = model::limits::read_capped(path, lim.model_bytes, "--variants file")
         .map_err(|e| EnsembleError::Invalid(format!("{}: {e}", path.display())))?;
@@ -329,6 +447,7 @@ pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, Ensembl
         }
     }
     let mut rows = Vec::new();
+    let mut row_lines = Vec::new();
     for (ln, line) in lines {
         if rows.len() as u64 >= lim.variants {
             return Err(EnsembleError::Invalid(format!(
@@ -368,6 +487,7 @@ pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, Ensembl
             row.push((n.clone(), x));
         }
         rows.push(row);
+        row_lines.push(ln + 1);
     }
     if rows.is_empty() {
         return Err(EnsembleError::Invalid(format!(
@@ -375,7 +495,7 @@ pub fn read_variants_csv(path: &Path) -> Result<Vec<Vec<(String, f64)>>, Ensembl
             path.display()
         )));
     }
-    Ok(rows)
+    Ok((rows, row_lines))
 }
 
 /// What to run.
@@ -500,19 +620,23 @@ pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, 
     }
     // The file is read and parsed once; each variant compiles its own parameter values
     // from the parsed spec (the same model as `model::load`), on the campaign's threads.
-    // The first failing variant (in order) is the one reported, as when compiled in turn.
+    // The first failing variant (in order) is the one reported, as when compiled in turn,
+    // named with its values (the model error alone points at the model's line, the same
+    // for every variant).
     let parsed = model::parse_file(&c.model_path)?;
-    let compile = |gi: usize| -> Result<Model, model::ModelError> {
+    let compile = |gi: usize| -> Result<Model, EnsembleError> {
         let mut sets = c.base.clone();
         sets.extend(c.variants[gi].iter().cloned());
-        let mut m = parsed.compile(&sets)?;
+        let mut m = parsed
+            .compile(&sets)
+            .map_err(|e| EnsembleError::variant(gi, &c.variants[gi], e))?;
         if c.accuracy.is_some() {
             m.solver.accuracy = c.accuracy;
         }
         Ok(m)
     };
     let models: Vec<Model> = if c.threads > 1 && global_index.len() > 1 {
-        let compiled: Vec<Result<Model, model::ModelError>> = rayon::ThreadPoolBuilder::new()
+        let compiled: Vec<Result<Model, EnsembleError>> = rayon::ThreadPoolBuilder::new()
             .num_threads(c.threads)
             .build()
             .map_err(|e| EnsembleError::Invalid(format!("thread pool: {e}")))?
@@ -527,7 +651,14 @@ pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, 
     let reference = if models.is_empty() {
         let mut sets = c.base.clone();
         sets.extend(c.variants.first().into_iter().flatten().cloned());
-        Some(parsed.compile(&sets)?)
+        Some(
+            parsed
+                .compile(&sets)
+                .map_err(|e| match c.variants.first() {
+                    Some(v) => EnsembleError::variant(0, v, e),
+                    None => e.into(),
+                })?,
+        )
     } else {
         None
     };
@@ -542,21 +673,24 @@ pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, 
         for (m, &gi) in models.iter().zip(&global_index).skip(1) {
             let s = topology(m);
             if s != sig {
-                return Err(EnsembleError::Invalid(format!(
-                    "variant {gi} ({}) changes the model's topology ({}) against variant {} ({}): \
-                     all variants of a campaign must share nodes, elements, coordinates and sensors",
-                    describe(&c.variants[gi]),
-                    s,
-                    global_index[0],
-                    sig
-                )));
+                return Err(EnsembleError::variant(
+                    gi,
+                    &c.variants[gi],
+                    format!(
+                        "changes the model's topology ({s}) against variant {} ({sig}): all \
+                         variants of a campaign must share nodes, elements, coordinates and \
+                         sensors",
+                        global_index[0],
+                    ),
+                ));
             }
             if dynamics::output_times(m) != time {
-                return Err(EnsembleError::Invalid(format!(
-                    "variant {gi} ({}) has another output time grid (t_end, dt, output_dt): \
-                     all variants must report on the same grid",
-                    describe(&c.variants[gi])
-                )));
+                return Err(EnsembleError::variant(
+                    gi,
+                    &c.variants[gi],
+                    "has another output time grid (t_end, dt, output_dt): all variants must \
+                     report on the same grid",
+                ));
             }
         }
     }
@@ -1096,6 +1230,48 @@ mod tests {
         let r = super::Range::parse("x=0.1:0.7:4").unwrap();
         let plain: Vec<f64> = (0..4).map(|i| 0.1 + (0.7 - 0.1) * i as f64 / 3.0).collect();
         assert_eq!(r.values(), plain);
+    }
+
+    #[test]
+    fn a_variant_is_named_by_its_csv_line_and_grid_point() {
+        use super::Origin;
+        let v = |p: &[(&str, f64)]| -> Vec<(String, f64)> {
+            p.iter().map(|(n, x)| (n.to_string(), *x)).collect()
+        };
+        // two rows (lines 2 and 5) crossed with a grid of 3 points
+        let o = Origin {
+            csv: Some(("rows.csv".into(), vec![2, 5])),
+            csv_columns: 1,
+            grid_points: 3,
+        };
+        assert_eq!(
+            o.describe(4, &v(&[("EI", -1.0), ("L", 2.0)])),
+            "variant 4 (--variants rows.csv line 5: EI=-1; --vary L=2)"
+        );
+        let rows = Origin {
+            grid_points: 1,
+            csv_columns: 2,
+            ..o.clone()
+        };
+        assert_eq!(
+            rows.describe(1, &v(&[("EI", -1.0), ("L", 2.0)])),
+            "variant 1 (--variants rows.csv line 5: EI=-1, L=2)"
+        );
+        let grid = Origin {
+            grid_points: 6,
+            ..Origin::default()
+        };
+        assert_eq!(
+            grid.describe(3, &v(&[("EI", 0.0), ("L", 2.0)])),
+            "variant 3 (--vary EI=0, L=2)"
+        );
+        // nothing known, or an index past the table: the values alone
+        assert_eq!(
+            Origin::default().describe(3, &v(&[("EI", 0.0)])),
+            "variant 3 (EI=0)"
+        );
+        assert_eq!(o.describe(9, &v(&[("EI", 0.0)])), "variant 9 (EI=0)");
+        assert_eq!(Origin::default().describe(0, &[]), "variant 0");
     }
 
     #[test]

@@ -416,3 +416,151 @@ fn a_parameter_given_by_set_and_by_a_variation_is_refused_and_one_set_twice_is_n
     let t = v["sensors"]["angle"]["t"].as_array().unwrap();
     assert_eq!(t.last().unwrap().as_f64(), Some(0.01));
 }
+
+#[test]
+fn a_variant_that_breaks_the_model_is_named_by_its_csv_line_or_grid_point() {
+    // the message named only the model's line, the same for every row: with 1000 rows
+    // the bad one could not be found
+    let m = "models/pendulum.toml";
+    let bad = temp("bad_row.csv", "theta0,m\n0.1,1\n0.2,2\n0.3,-2\n0.4,3\n");
+    let b = bad.to_str().unwrap();
+    let e = usage_error(
+        &["sweep", m, "--variants", b, "--set", "t_end=0.01"],
+        "pendulum.toml:26:8: field `bodies[0].mass`: must be > 0, is -2",
+    );
+    assert!(
+        e.contains(&format!("--variants {b} line 4: theta0=0.3, m=-2")),
+        "{e}"
+    );
+    assert_eq!(e.matches("error:").count(), 1, "{e}");
+    // lines as the file has them: a comment and a blank line before the header count
+    let commented = temp(
+        "bad_row_commented.csv",
+        "# masses\n\ntheta0,m\n0.1,1\n# the next one is wrong\n0.2,-2\n",
+    );
+    let c = commented.to_str().unwrap();
+    usage_error(
+        &["sweep", m, "--variants", c, "--set", "t_end=0.01"],
+        &format!("--variants {c} line 6: theta0=0.2, m=-2"),
+    );
+    // crossed with a grid: the row, and the grid point's values
+    usage_error(
+        &[
+            "sweep",
+            m,
+            "--variants",
+            b,
+            "--vary",
+            "d=0.5:1:2",
+            "--set",
+            "t_end=0.01",
+        ],
+        &format!("variant 4 (--variants {b} line 4: theta0=0.3, m=-2; --vary d=0.5)"),
+    );
+    // a grid alone: the values of the failing point (m = 2, 1, 0, theta0 fastest: the
+    // first bad one is variant 4)
+    usage_error(
+        &[
+            "sweep",
+            m,
+            "--vary",
+            "m=2:0:3",
+            "--vary",
+            "theta0=0.1:0.2:2",
+            "--set",
+            "t_end=0.01",
+        ],
+        "variant 4 (--vary m=0, theta0=0.1): models/pendulum.toml:26:8: field `bodies[0].mass`",
+    );
+    // the other paths that compile the variants: --plan, --path
+    usage_error(
+        &[
+            "sweep",
+            m,
+            "--variants",
+            b,
+            "--plan",
+            "--probe",
+            "4",
+            "--set",
+            "t_end=0.01",
+        ],
+        &format!("--variants {b} line 4: theta0=0.3, m=-2"),
+    );
+    // an element count of 0 in a row
+    let zero = temp("zero_elements.csv", "elements,P\n8,1\n4,2\n0,3\n");
+    let z = zero.to_str().unwrap();
+    usage_error(
+        &["sweep", "models/cantilever.toml", "--variants", z, "--path"],
+        &format!(
+            "variant 2 (--variants {z} line 4: elements=0, P=3): models/cantilever.toml:38:12: \
+             field `beams[0].elements`"
+        ),
+    );
+    // `--resume`: the variants a campaign file still lacks are compiled from the table
+    // given now (variant 1, in shard 2 of 2, was never run: the merge has a gap)
+    let masses = temp("masses.csv", "m\n1\n2\n3\n");
+    let shard1 = std::env::temp_dir().join(format!("latdyn_bad_{}_s1.h5", std::process::id()));
+    let merged = std::env::temp_dir().join(format!("latdyn_bad_{}_m.h5", std::process::id()));
+    let (s1, mg) = (shard1.to_str().unwrap(), merged.to_str().unwrap());
+    let short = ["--set", "t_end=0.01"];
+    let mut args = vec!["sweep", m, "--variants", masses.to_str().unwrap()];
+    args.extend(short);
+    args.extend(["--shard", "1/2", "-o", s1]);
+    let out = latdyn(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = latdyn(&["merge", s1, "-o", mg]);
+    assert_eq!(
+        out.status.code(),
+        Some(4),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let changed = temp("masses_changed.csv", "m\n1\n-2\n3\n");
+    let ch = changed.to_str().unwrap();
+    let mut args = vec!["sweep", m, "--variants", ch];
+    args.extend(short);
+    args.extend(["--resume", mg]);
+    usage_error(
+        &args,
+        &format!("--resume {mg}: variant 1 (--variants {ch} line 3: m=-2): "),
+    );
+    for p in [&shard1, &merged] {
+        let _ = std::fs::remove_file(p);
+    }
+
+    // a value an expression turns into NaN
+    let text = std::fs::read_to_string(dir("models/cantilever.toml"))
+        .unwrap()
+        .replace("EIy = \"EI\"", "EIy = \"sqrt(EI)\"");
+    let sq = temp("sqrt.toml", &text);
+    let roots = temp("sqrt.csv", "EI\n4\n9\n-1\n");
+    let r = roots.to_str().unwrap();
+    let e = usage_error(
+        &["sweep", sq.to_str().unwrap(), "--variants", r],
+        &format!("variant 2 (--variants {r} line 4: EI=-1): "),
+    );
+    assert!(e.contains("`sqrt(EI)` evaluates to NaN"), "{e}");
+
+    // a good table still runs
+    let good = temp("good_rows.csv", "theta0,m\n0.1,1\n0.2,2\n0.3,3\n");
+    let out = latdyn(&[
+        "sweep",
+        m,
+        "--variants",
+        good.to_str().unwrap(),
+        "--set",
+        "t_end=0.01",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["variants"].as_array().map(Vec::len), Some(3), "{v}");
+    assert_eq!(v["status"], "complete", "{v}");
+    assert_eq!(v["failed_variants"], 0, "{v}");
+}

@@ -345,3 +345,27 @@ fn a_tangent_too_ill_conditioned_to_factor_is_named_not_reported_as_a_stall_at_z
         "{err}"
     );
 }
+
+#[test]
+fn a_step_matrix_too_ill_conditioned_to_factor_is_named_not_reported_as_a_zero_residual() {
+    // the same mesh under `run`: every step size fails at its factorization, before a
+    // Newton iteration, and the message only said "did not converge with the step cut to
+    // 9.5e-10 s (worst residual 0)"
+    let out = latdyn(&["run", "models/cantilever.toml", "--set", "elements=3000"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("the step's matrix")
+            && err.contains("could not be factored at any step size")
+            && err.contains("18000 coordinates")
+            && err.contains("fewer elements"),
+        "{err}"
+    );
+    // a model that factors but does not converge keeps the plain message
+    let ok = latdyn(&["run", "models/cantilever.toml", "--set", "P=1"]);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+}

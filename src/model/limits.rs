@@ -17,7 +17,7 @@ use std::path::Path;
 pub const ENV: &str = "LATDYN_LIMITS";
 
 /// The keys `LATDYN_LIMITS` accepts, with what each one bounds.
-pub const KEYS: [(&str, &str); 6] = [
+pub const KEYS: [(&str, &str); 7] = [
     (
         "model_bytes",
         "size of a model file or a --variants CSV file in bytes",
@@ -37,6 +37,11 @@ pub const KEYS: [(&str, &str); 6] = [
         "steps",
         "time steps of one run, t_end / dt (each run that `--accuracy` makes, too)",
     ),
+    (
+        "dense_bytes",
+        "bytes of the dense matrices of `modes` and of a steady start (`[initial] steady`): \
+         8 n×n f64 matrices, 16 for rotating-frame modes (n = free coordinates)",
+    ),
 ];
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -47,6 +52,7 @@ pub struct Limits {
     pub output_values: u64,
     pub variants: u64,
     pub steps: u64,
+    pub dense_bytes: u64,
 }
 
 impl Default for Limits {
@@ -67,6 +73,9 @@ impl Default for Limits {
             // shipped run (a reference at dt = 7.8e-6 over 12 s) takes 1.5e6. `dt = 1e-12`
             // typed for 1e-2 must not start a run that never ends.
             steps: 100_000_000,
+            // memory grows as n² and time as n³ (3564 coordinates, the 18-bay Mini-Mast,
+            // take about 8 minutes): 5792 coordinates at rest, 4096 in the rotating frame
+            dense_bytes: 2 << 30,
         }
     }
 }
@@ -105,6 +114,7 @@ impl Limits {
                 "output_values" => l.output_values = x,
                 "variants" => l.variants = x,
                 "steps" => l.steps = x,
+                "dense_bytes" => l.dense_bytes = x,
                 _ => {
                     let keys: Vec<&str> = KEYS.iter().map(|(k, _)| *k).collect();
                     return Err(format!(
@@ -231,6 +241,12 @@ mod tests {
         let l = Limits::parse("elements=2e6, variants=5").unwrap();
         assert_eq!((l.elements, l.variants), (2_000_000, 5));
         assert_eq!(l.dofs, Limits::default().dofs);
+        let l = Limits::parse("dense_bytes=1e5").unwrap();
+        assert_eq!(l.dense_bytes, 100_000);
+        assert_eq!(Limits::default().dense_bytes, 2 << 30);
+        assert!(Limits::parse("dense=5")
+            .unwrap_err()
+            .contains("dense_bytes"));
         assert!(Limits::parse("elements").unwrap_err().contains("KEY=VALUE"));
         assert!(Limits::parse("elems=5")
             .unwrap_err()

@@ -18,6 +18,126 @@ use super::SensorMeta;
 /// dozen at most, and a reader builds one name per component before reading any data.
 pub const MAX_SENSOR_COMPONENTS: usize = 1024;
 
+/// Why a dataset is refused before it is read: the size its shape claims (`shape`, with
+/// `element_size` bytes per element) exceeds what a file latdyn writes within the limits
+/// of `LATDYN_LIMITS` ([`crate::model::limits`]) can hold; `None` if it may be read.
+///
+/// A chunked or resizable dataset whose chunks were never written reads back as its fill
+/// value, so a 16 KB file can claim 10¹⁰ values: the claim is a number in the file, not
+/// data, and reading it would allocate (and fill) that much. The bounds follow from the
+/// limits every writer checks before it runs (a larger claim is not latdyn's writing):
+/// - `/time` (and `/xarray/time`): output times ≤ `output_values`, since a run, sweep or
+///   path keeps output times × (sensor components + 1) × variants ≤ `output_values`
+///   values;
+/// - `/sensors/<NAME>` [V, T, C]: V·T·C ≤ `output_values`, by the same product;
+/// - a per-variant dataset (`/parameters/values`, `/status/*`, `/derived/*`,
+///   `/campaign/variants`, `/sensors/*` rows): at most `variants` rows, since a sweep
+///   (every shard, a merge) has at most that many variants and a run has one;
+/// - any other dataset read whole (`/parameters/names`, `/campaign/*`, `/verification/*`,
+///   the scalar texts): at most `output_values` elements and 8 × `output_values` bytes,
+///   the memory the limit grants a campaign's values. No writer checks these directly,
+///   but they hold one value per parameter, variant or sensor: `/parameters/values`, the
+///   largest, holds variants × parameters, within it up to 1 000 parameters at the
+///   largest campaign the variants limit allows (the shipped models have at most 79).
+/// - `/model/source`: at most `model_bytes` bytes (the model file it copies was read
+///   under that limit).
+pub fn oversized_claim(name: &str, shape: &[usize], element_size: usize) -> Option<String> {
+    let lim = match crate::model::Limits::from_env() {
+        Ok(l) => l,
+        Err(e) => return Some(e),
+    };
+    let name = name.trim_start_matches('/');
+    let elements = shape.iter().fold(1.0f64, |n, &d| n * d as f64);
+    // `claim` of `what` over `limit` (`rule` says why that bounds it); raising `key` to
+    // `raise_to` would let it be read
+    let refuse = |claim: f64, what: &str, rule: &str, limit: f64, key: &str, raise_to: f64| {
+        let count = crate::model::limits::count;
+        let env = crate::model::limits::ENV;
+        let raise = if raise_to <= 1e18 {
+            format!(
+                "; if it really holds that many, raise the limit: {env}={key}={}",
+                count(raise_to.ceil())
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "/{name} claims {} {what} (shape {shape:?}), refused before reading: {rule} \
+             (limit {}: {env} key `{key}`). The file is damaged or not latdyn's{raise}",
+            count(claim),
+            count(limit),
+        )
+    };
+    let per_variant = name == PARAMETER_VALUES
+        || name == VARIANTS
+        || [STATUS, DERIVED, SENSORS]
+            .iter()
+            .any(|g| name.strip_prefix(g).is_some_and(|r| r.starts_with('/')));
+    let (out_values, variants) = (lim.output_values as f64, lim.variants as f64);
+    if name == TIME || name == "xarray/time" {
+        let n = shape.first().copied().unwrap_or(1) as f64;
+        if n > out_values {
+            return Some(refuse(
+                n,
+                "output times",
+                "a file latdyn writes has at most as many output times as the output-values \
+                 limit, since a run, sweep or path keeps output times × (sensor components \
+                 + 1) × variants within it",
+                out_values,
+                "output_values",
+                n,
+            ));
+        }
+    }
+    if per_variant {
+        let n = shape.first().copied().unwrap_or(1) as f64;
+        if n > variants {
+            return Some(refuse(
+                n,
+                "variants",
+                "a campaign latdyn writes has at most the variants limit",
+                variants,
+                "variants",
+                n,
+            ));
+        }
+    }
+    if elements > out_values {
+        return Some(refuse(
+            elements,
+            "values",
+            "latdyn reads no dataset of more values than the output-values limit, the \
+             values it keeps for a campaign",
+            out_values,
+            "output_values",
+            elements,
+        ));
+    }
+    let bytes = elements * element_size as f64;
+    if name == MODEL_SOURCE && bytes > lim.model_bytes as f64 {
+        return Some(refuse(
+            bytes,
+            "bytes",
+            "it copies a model file, which latdyn reads up to the model-bytes limit",
+            lim.model_bytes as f64,
+            "model_bytes",
+            bytes,
+        ));
+    }
+    if bytes > 8.0 * out_values {
+        return Some(refuse(
+            bytes,
+            "bytes",
+            "latdyn reads no dataset of more bytes than 8 per value of the output-values \
+             limit",
+            8.0 * out_values,
+            "output_values",
+            bytes / 8.0,
+        ));
+    }
+    None
+}
+
 /// A dataset of an open file (the HDF5 crate's handle).
 pub use rust_hdf5::H5Dataset as Dataset;
 
@@ -133,9 +253,20 @@ impl Reader {
             .map_err(|e| format!("no /{name} ({e})"))
     }
 
-    /// A float64 dataset's values (empty for an empty dataset).
-    pub fn f64s(&self, name: &str) -> Result<Vec<f64>, String> {
+    /// A dataset to be read whole, once the size its shape claims is checked
+    /// ([`oversized_claim`]): `no /NAME (...)` or why its claim is refused.
+    pub fn sized(&self, name: &str) -> Result<H5Dataset, String> {
         let d = self.dataset(name)?;
+        match oversized_claim(name, &d.shape(), d.element_size()) {
+            Some(why) => Err(why),
+            None => Ok(d),
+        }
+    }
+
+    /// A float64 dataset's values (empty for an empty dataset); the reads below all check
+    /// the size the dataset claims first ([`Reader::sized`]).
+    pub fn f64s(&self, name: &str) -> Result<Vec<f64>, String> {
+        let d = self.sized(name)?;
         if d.total_elements() == 0 {
             return Ok(Vec::new());
         }
@@ -145,7 +276,7 @@ impl Reader {
 
     /// An integer dataset's values as i64 (empty for an empty dataset).
     pub fn i64s(&self, name: &str) -> Result<Vec<i64>, String> {
-        let d = self.dataset(name)?;
+        let d = self.sized(name)?;
         if d.total_elements() == 0 {
             return Ok(Vec::new());
         }
@@ -155,7 +286,7 @@ impl Reader {
 
     /// A string dataset's values (empty for an empty dataset).
     pub fn strings(&self, name: &str) -> Result<Vec<String>, String> {
-        let d = self.dataset(name)?;
+        let d = self.sized(name)?;
         if d.total_elements() == 0 {
             return Ok(Vec::new());
         }
@@ -166,7 +297,7 @@ impl Reader {
     /// A scalar string dataset (`/model/source`, `/campaign/definition`), NUL padding
     /// removed.
     pub fn scalar_text(&self, name: &str) -> Result<String, String> {
-        self.dataset(name)?
+        self.sized(name)?
             .read_raw_bytes()
             .map(|b| {
                 String::from_utf8_lossy(&b)

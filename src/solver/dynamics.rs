@@ -22,12 +22,14 @@ use std::sync::Arc;
 
 #[derive(Debug, thiserror::Error)]
 pub enum DynamicsError {
-    #[error("time integration failed at t = {t:.6} s: Newton did not converge with the step cut to {dt:.3e} s (worst residual {residual:.3e} at dof `{dof}`)")]
+    #[error("time integration failed at t = {t:.6} s: Newton did not converge with the step cut to {dt:.3e} s (worst residual {residual:.3e} at dof `{dof}`){cause}")]
     NoConvergence {
         t: f64,
         dt: f64,
         residual: f64,
         dof: String,
+        /// why, where known (the step's matrix could not be factored), else empty
+        cause: String,
     },
     #[error("time integration stalled at t = {t:.6} s: {rejected} of {attempts} step attempts were rejected (Newton fails at the steps the controller regrows to and converges only near {dt:.3e} s); the model is too stiff or too ill-conditioned for dt: lower dt, or check the stiffness and mass scales")]
     Stalled {
@@ -534,6 +536,10 @@ pub struct Integrator<'m> {
     scratch_dy: Vec<Vec<f64>>,
     /// consecutive retries of a step cut back to land on a hinge's lock angle
     lock_retries: usize,
+    /// the last step attempt's factorization failure, cleared by a step that factors:
+    /// a run whose every attempt fails there says so instead of a residual that says
+    /// nothing (it failed before its first Newton iteration)
+    factor_failure: Option<String>,
     /// `advance` returns after each accepted step (a run whose samples are interpolated
     /// between its step ends, [`StepEnds`])
     one_step: bool,
@@ -668,6 +674,7 @@ impl<'m> Integrator<'m> {
             trend_smooth: false,
             te: TimeError::new(model, &s, model.n_eq),
             lock_retries: 0,
+            factor_failure: None,
             one_step: false,
             scratch_y: Vec::new(),
             scratch_dy: Vec::new(),
@@ -1242,8 +1249,16 @@ impl<'m> Integrator<'m> {
                 .evaluate_async(model, &self.asm, s, coeffs, factor)
                 .await
             {
-                Ok(i) => i,
-                Err(_) => return Ok(StepResult::Failed),
+                Ok(i) => {
+                    if factor {
+                        self.factor_failure = None;
+                    }
+                    i
+                }
+                Err(e) => {
+                    self.factor_failure = Some(e.to_string());
+                    return Ok(StepResult::Failed);
+                }
             };
             let res = norm_inf(&self.sys.r);
             if !res.is_finite() {
@@ -1611,11 +1626,27 @@ impl<'m> Integrator<'m> {
                     self.h = h * 0.5;
                     if self.h < self.model.solver.dt_min {
                         let (dof, residual) = worst_dof(self.model, &self.sys.r);
+                        let cause = match &self.factor_failure {
+                            Some(e) => format!(
+                                "; the step's matrix (mass plus the step's share of damping \
+                                 and stiffness) could not be factored at any step size ({e}): \
+                                 it is singular to working precision (condition estimate \
+                                 above {:e}), as when a mass or inertia is zero or a \
+                                 coordinate is free of any mass, or in a model of {} \
+                                 coordinates whose heaviest and lightest, or stiffest and \
+                                 softest, directions differ by more (many elements, or EA far \
+                                 above EI/L²): fewer elements may solve it",
+                                crate::linalg::SINGULAR_COND_LIMIT,
+                                self.model.n_eq
+                            ),
+                            None => String::new(),
+                        };
                         return Err(DynamicsError::NoConvergence {
                             t: self.s.t,
                             dt: self.h,
                             residual,
                             dof,
+                            cause,
                         });
                     }
                 }

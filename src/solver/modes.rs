@@ -46,13 +46,6 @@ pub enum ModesError {
     TooLarge(String),
 }
 
-/// Largest memory the dense modal analyses may take, in bytes (their peak, estimated as
-/// [`DENSE_MATRICES`] or [`DENSE_MATRICES_ROTATING`] n×n f64 matrices, n = free
-/// coordinates). The solvers are dense: memory grows as n² and time as n³ (3564
-/// coordinates, the 18-bay Mini-Mast, take about 8 minutes), so beyond this the run would
-/// either abort on a failed allocation or not finish. At the default 2 GiB: 5792
-/// coordinates at rest or preloaded, 4096 in the rotating frame.
-pub const DENSE_LIMIT_BYTES: u64 = 2 << 30;
 /// n×n matrices [`lowest_modes`] holds at its peak, rounded up: K and M, their symmetrised
 /// copies, the eigenvectors of M, the transformed K, the LU of K − σM and its scratch.
 pub const DENSE_MATRICES: f64 = 8.0;
@@ -62,33 +55,64 @@ pub const DENSE_MATRICES: f64 = 8.0;
 pub const DENSE_MATRICES_ROTATING: f64 = 16.0;
 
 /// Refuses, before anything of that size is allocated, a dense modal analysis of `n`
-/// coordinates whose matrices would exceed [`DENSE_LIMIT_BYTES`]; the message names the
-/// size, the limit and what to do.
+/// coordinates whose matrices would exceed the `LATDYN_LIMITS` key `dense_bytes` (see
+/// [`crate::model::limits`]; an unreadable `LATDYN_LIMITS` is refused too); the message
+/// names the size, the limit, the key that raises it and what else to do.
 pub fn check_dense_size(n: usize, rotating: bool) -> Result<(), String> {
+    let limit = crate::model::Limits::from_env()?.dense_bytes;
+    check_dense_size_within(n, rotating, limit)
+}
+
+/// [`check_dense_size`] against a limit of `limit` bytes.
+///
+/// The memory is estimated as [`DENSE_MATRICES`] or [`DENSE_MATRICES_ROTATING`] n×n f64
+/// matrices (their peak). The solvers are dense: memory grows as n² and time as n³ (3564
+/// coordinates, the 18-bay Mini-Mast, take about 8 minutes), so beyond the limit the run
+/// would either abort on a failed allocation or not finish. At the default 2 GiB: 5792
+/// coordinates at rest or preloaded, 4096 in the rotating frame.
+pub fn check_dense_size_within(n: usize, rotating: bool, limit: u64) -> Result<(), String> {
     let mats = if rotating {
         DENSE_MATRICES_ROTATING
     } else {
         DENSE_MATRICES
     };
     let bytes = mats * 8.0 * (n as f64) * (n as f64);
-    if bytes <= DENSE_LIMIT_BYTES as f64 {
+    if bytes <= limit as f64 {
         return Ok(());
     }
-    let n_max = (DENSE_LIMIT_BYTES as f64 / (mats * 8.0)).sqrt().floor();
+    let n_max = (limit as f64 / (mats * 8.0)).sqrt().floor();
     let kind = if rotating {
         "rotating-frame modal analysis (first-order form 2n×2n)"
     } else {
         "modal analysis"
     };
+    let over = crate::model::limits::exceeded(
+        &format!(
+            "{n} free coordinates need {mats} dense {n}×{n} matrices, about {}; in bytes",
+            approx_bytes(bytes)
+        ),
+        bytes,
+        "dense_bytes",
+        limit,
+    );
     Err(format!(
-        "model too large for the dense {kind}: {n} free coordinates need about {:.1} GB \
-         ({mats} dense {n}×{n} matrices), over the limit of {:.1} GB ({} coordinates); \
-         use fewer elements (e.g. a smaller `--set elements=...`): the lowest modes \
-         converge long before that size",
-        bytes / 1e9,
-        DENSE_LIMIT_BYTES as f64 / 1e9,
+        "model too large for the dense {kind}: {over}; that limit ({}) allows {} free \
+         coordinates. Or, better, use fewer elements (e.g. a smaller `--set elements=...`): \
+         the lowest modes converge long before that size",
+        approx_bytes(limit as f64),
         n_max as u64
     ))
+}
+
+/// A size in bytes for messages, in kB, MB or GB.
+fn approx_bytes(b: f64) -> String {
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.1} MB", b / 1e6)
+    } else {
+        format!("{:.1} kB", b / 1e3)
+    }
 }
 
 #[derive(Debug, Clone)]

@@ -11,12 +11,15 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
         return modes_vary(args, range);
     }
     let m = args.model.load()?;
-    let spin = latdyn::solver::rotating::find_spin(&m);
-    latdyn::solver::modes::check_dense_size(m.n_eq, spin.is_some())
-        .map_err(|e| anyhow!("{}: {e}", m.path))?;
-    if let Some(spin) = spin {
+    // the rotating-frame analysis refuses a model too large for its dense matrices itself,
+    // first thing (`solver::modes::check_dense_size`)
+    if let Some(spin) = latdyn::solver::rotating::find_spin(&m) {
         return rotating_modes(args, &m, spin);
     }
+    // `lowest_modes` refuses it too, but only after the static equilibrium below, which
+    // on such a model would take long before the refusal
+    latdyn::solver::modes::check_dense_size(m.n_eq, false)
+        .map_err(|e| anyhow!("{}: {e}", m.path))?;
     let preload = match args.about.as_str() {
         "static" => true,
         "reference" => false,
@@ -154,7 +157,9 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
         let mut set = args.model.set.clone();
         set.retain(|(n, _)| *n != range.name);
         set.push((range.name.clone(), v));
-        let m = model::load(&args.model.model, &set)?;
+        // a value that breaks the model is named, not only the model's line
+        let m = model::load(&args.model.model, &set)
+            .map_err(|e| anyhow!("--vary {}={v}: {e}", range.name))?;
         if m.param(&range.name).is_none() {
             return Err(anyhow!(
                 "--vary {}: the model has no parameter `{}`",
@@ -181,8 +186,7 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
             ));
         }
         free_dofs = m.n_eq;
-        latdyn::solver::modes::check_dense_size(m.n_eq, true)
-            .map_err(|e| anyhow!("{}: {e}", m.path))?;
+        // too large for the dense matrices: refused by the analysis before it allocates
         let rm = rotating::rotating_modes_with_shapes(&m, spin, want)
             .with_context(|| format!("{}: rotating-frame modes at {}={v}", m.path, range.name))?;
         if let Some(w) = rm.steady_warning() {

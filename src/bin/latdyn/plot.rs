@@ -303,6 +303,9 @@ pub struct Campaign {
     pub n_variants: usize,
     /// `/status/state` per variant (empty if absent).
     pub states: Vec<i32>,
+    /// `/status/t_fail` per variant (empty if absent): where a failed or interrupted
+    /// variant stopped; its samples after it were never written (they read NaN).
+    pub t_fail: Vec<f64>,
 }
 
 impl Campaign {
@@ -320,53 +323,93 @@ impl Campaign {
         }
         let reader = Reader::open(path)
             .map_err(|e| err(format!("not a readable HDF5 results file ({e})")))?;
-        let time_ds = reader.file().dataset(layout::TIME).map_err(|_| {
-            err("not a latdyn results file (no /time dataset; `run -o FILE.h5` writes one)".into())
-        })?;
-        let time = time_ds
-            .read_raw::<f64>()
-            .map_err(|e| err(format!("reading /time: {e}")))?;
+        if !reader.has_dataset(layout::TIME) {
+            return Err(err(
+                "not a latdyn results file (no /time dataset; `run -o FILE.h5` writes one)".into(),
+            ));
+        }
+        // every dataset read whole is first checked for the size its shape claims
+        // (`Reader::sized`): a 16 KB file can claim 10¹⁰ output times or variants
+        let time_ds = reader.sized(layout::TIME).map_err(&err)?;
+        let time = if time_ds.total_elements() == 0 {
+            Vec::new()
+        } else {
+            time_ds
+                .read_raw::<f64>()
+                .map_err(|e| err(format!("reading /time: {e}")))?
+        };
         let time_units = time_ds
             .attr(layout::attr::UNITS)
             .and_then(|a| a.read_string())
             .unwrap_or_else(|_| "s".into());
-        let parameter_names = match reader.file().dataset(layout::PARAMETER_NAMES) {
-            Ok(ds) => ds
-                .read_strings()
-                .map_err(|e| err(format!("reading /parameters/names: {e}")))?,
-            Err(_) => Vec::new(),
+        let parameter_names = if reader.has_dataset(layout::PARAMETER_NAMES) {
+            reader.strings(layout::PARAMETER_NAMES).map_err(&err)?
+        } else {
+            Vec::new()
         };
-        let n_sensor_variants = reader
-            .names_in(layout::SENSORS)
-            .first()
-            .and_then(|n| reader.file().dataset(&layout::sensor(n)).ok())
-            .and_then(|ds| ds.shape().first().copied());
-        let parameter_values = match reader.file().dataset(layout::PARAMETER_VALUES) {
-            Ok(ds) => {
-                let shape = ds.shape();
-                let raw = ds
-                    .read_raw::<f64>()
-                    .map_err(|e| err(format!("reading /parameters/values: {e}")))?;
-                let (nv, np) = (shape.first().copied().unwrap_or(0), parameter_names.len());
-                if np == 0 {
-                    vec![Vec::new(); nv]
-                } else {
-                    if raw.len() != nv * np {
-                        return Err(err(format!(
-                            "/parameters/values has {} values, expected {nv} × {np}",
-                            raw.len()
-                        )));
+        let n_sensor_variants = match reader.names_in(layout::SENSORS).first() {
+            Some(n) => match reader.file().dataset(&layout::sensor(n)) {
+                Ok(ds) => {
+                    let rows = ds.shape().first().copied().unwrap_or(0);
+                    // only the row count is used here (the samples are checked when read)
+                    if let Some(why) =
+                        layout::oversized_claim(&layout::sensor(n), &[rows], ds.element_size())
+                    {
+                        return Err(err(why));
                     }
-                    raw.chunks(np).map(<[f64]>::to_vec).collect()
+                    rows
                 }
+                Err(_) => 0,
+            },
+            None => 0,
+        };
+        let parameter_values = if reader.has_dataset(layout::PARAMETER_VALUES) {
+            let ds = reader.sized(layout::PARAMETER_VALUES).map_err(&err)?;
+            let shape = ds.shape();
+            let (nv, np) = (shape.first().copied().unwrap_or(0), parameter_names.len());
+            if np == 0 {
+                vec![Vec::new(); nv]
+            } else {
+                // checked on the shape, before the read allocates it
+                if shape.len() != 2 || shape[1] != np {
+                    return Err(err(format!(
+                        "/parameters/values has shape {shape:?}, expected [variants, {np}] \
+                         ({np} names in /parameters/names)"
+                    )));
+                }
+                let raw = reader.f64s(layout::PARAMETER_VALUES).map_err(&err)?;
+                if raw.len() != nv * np {
+                    return Err(err(format!(
+                        "/parameters/values has {} values, expected {nv} × {np}",
+                        raw.len()
+                    )));
+                }
+                raw.chunks(np).map(<[f64]>::to_vec).collect()
             }
-            Err(_) => vec![Vec::new(); n_sensor_variants.unwrap_or(0)],
+        } else {
+            vec![Vec::new(); n_sensor_variants]
         };
         let n_variants = parameter_values.len();
+        // a refused claim is an error; a missing or unreadable status only loses the
+        // labels and the failure times
+        let refused = |name: &str| {
+            reader
+                .file()
+                .dataset(name)
+                .ok()
+                .and_then(|d| layout::oversized_claim(name, &d.shape(), d.element_size()))
+                .map(&err)
+        };
+        for name in [layout::STATE, layout::T_FAIL] {
+            if let Some(e) = refused(name) {
+                return Err(e);
+            }
+        }
         let states = reader
             .i64s(layout::STATE)
             .map(|v| v.into_iter().map(|x| x as i32).collect())
             .unwrap_or_default();
+        let t_fail = reader.f64s(layout::T_FAIL).unwrap_or_default();
         let model_path = reader
             .scalar_text(layout::MODEL_PATH)
             .map(|t| t.trim().to_string())
@@ -381,6 +424,7 @@ impl Campaign {
             parameter_values,
             n_variants,
             states,
+            t_fail,
         })
     }
 
@@ -517,6 +561,13 @@ impl Campaign {
                 layout::MAX_SENSOR_COMPONENTS
             )));
         }
+        // and the whole dataset against what latdyn writes (variants × times × components
+        // within the output-values limit): the slice read is one variant of it
+        if let Some(why) =
+            layout::oversized_claim(&layout::sensor(&ch.sensor), &shape, ds.element_size())
+        {
+            return Err(self.err(why));
+        }
         if nt == 0 {
             return Ok(Vec::new());
         }
@@ -524,6 +575,91 @@ impl Campaign {
             .read_slice::<f64>(&[variant, 0, 0], &[1, nt, nc])
             .map_err(|e| self.err(format!("reading /sensors/{}: {e}", ch.sensor)))?;
         Ok(raw.chunks(nc).map(|r| r[ch.component]).collect())
+    }
+
+    /// Which samples of `variant` were never written, so read NaN by design rather than
+    /// as data; `None` for none (a completed variant, or a file without status).
+    ///
+    /// - A path campaign (`statics --path`, `sweep --path`: the sensor `path_lambda`):
+    ///   the points a path did not reach, where λ is NaN (shorter paths are NaN-padded
+    ///   to the longest, and `/time` is the point index there, so `t_fail` (a λ) does
+    ///   not locate them).
+    /// - A variant not completed (pending, running, failed, interrupted): its samples at
+    ///   and after `/status/t_fail`, all of them when that is NaN (never run, still
+    ///   running, or a panic). A run writes each output time it reaches and stops at
+    ///   t_fail, the time of its last accepted step; "at" covers a failure at the start
+    ///   (t_fail = 0, the first sample never written).
+    ///
+    /// A λ that cannot be read falls back to the status: the notes never stop a chart.
+    fn unwritten(&self, variant: usize) -> Option<Vec<bool>> {
+        let lambda = latdyn::solver::path::LAMBDA_SENSOR;
+        if self.sensor_names().iter().any(|n| n == lambda) {
+            let ch = Channel {
+                sensor: lambda.to_string(),
+                component: 0,
+                name: format!("{lambda}.lambda"),
+                unit: String::new(),
+            };
+            if let Ok(l) = self.samples(&ch, variant) {
+                let mut mask: Vec<bool> = l.iter().map(|x| x.is_nan()).collect();
+                mask.resize(self.time.len(), true);
+                return Some(mask);
+            }
+        }
+        match self.states.get(variant) {
+            None | Some(2) => None,
+            Some(_) => {
+                let tf = self.t_fail.get(variant).copied().unwrap_or(f64::NAN);
+                Some(self.time.iter().map(|&t| tf.is_nan() || t >= tf).collect())
+            }
+        }
+    }
+
+    /// A note for the NaN samples of `ch` in `variant` (`y`, over the time grid) that are
+    /// data rather than samples never written ([`Campaign::unwritten`]): how many, of
+    /// which line, and where the first is.
+    ///
+    /// The NaN tail of a failed, interrupted, pending or running variant, and the padding
+    /// of a shorter path, get no note: the legend already says `(failed)`,
+    /// `(interrupted)` or `(pending)`, the line visibly ends there and `/status/message`
+    /// says why, so a note would repeat on every chart of a campaign with a failure and
+    /// teach users to skip the notes, hiding the one that matters: a NaN inside the
+    /// samples a variant did write (a completed variant, or before a failure), which no
+    /// legend shows and a broken line alone does not explain.
+    fn nan_note(&self, ch: &Channel, variant: usize, y: &[f64], notes: &mut Vec<String>) {
+        if !y.iter().any(|v| v.is_nan()) {
+            return;
+        }
+        let unwritten = self.unwritten(variant);
+        let expected = |i: usize| unwritten.as_ref().is_some_and(|m| m.get(i) != Some(&false));
+        let nan: Vec<usize> = (0..y.len())
+            .filter(|&i| y[i].is_nan() && !expected(i))
+            .collect();
+        let Some(&first) = nan.first() else {
+            return;
+        };
+        // `variant 2 (omega=3, failed)`: the row index --variants takes, and the legend's
+        // words
+        let words: Vec<String> = self
+            .varying_parameters(variant)
+            .into_iter()
+            .chain(self.state_word(variant).map(String::from))
+            .collect();
+        let which = if words.is_empty() {
+            format!("variant {variant}")
+        } else {
+            format!("variant {variant} ({})", words.join(", "))
+        };
+        let at = self
+            .time
+            .get(first)
+            .map(|&t| format!("; the first at t = {} {}", fmt_num(t), self.time_units))
+            .unwrap_or_default();
+        notes.push(format!(
+            "{} NaN sample(s) of {} in {which} not drawn (the line breaks there{at})",
+            nan.len(),
+            ch.name
+        ));
     }
 
     /// `/derived/<NAME>` (one value per variant).
@@ -536,10 +672,8 @@ impl Campaign {
             )));
         }
         self.reader
-            .file()
-            .dataset(&layout::derived(name))
-            .and_then(|ds| ds.read_raw::<f64>())
-            .map_err(|e| self.err(format!("reading /derived/{name}: {e}")))
+            .f64s(&layout::derived(name))
+            .map_err(|e| self.err(e))
     }
 
     /// Values of one parameter over the variants.
@@ -560,6 +694,18 @@ impl Campaign {
     /// Legend label of a variant: the parameters that differ between variants
     /// (`omega=3, L=2`), else `variant k`; ` (failed)` if its status says so.
     pub fn variant_label(&self, v: usize) -> String {
+        let mut s = self
+            .varying_parameters(v)
+            .unwrap_or_else(|| format!("variant {v}"));
+        if let Some(w) = self.state_word(v) {
+            s += &format!(" ({w})");
+        }
+        s
+    }
+
+    /// `omega=3, L=2`: the parameters that differ between variants, with this one's
+    /// values; `None` if none differ.
+    fn varying_parameters(&self, v: usize) -> Option<String> {
         let varying: Vec<usize> = (0..self.parameter_names.len())
             .filter(|&k| {
                 let f0 = self.parameter_values.first().map_or(f64::NAN, |r| r[k]);
@@ -568,9 +714,7 @@ impl Campaign {
                     .any(|r| r[k] != f0 && !(r[k].is_nan() && f0.is_nan()))
             })
             .collect();
-        let mut s = if varying.is_empty() {
-            format!("variant {v}")
-        } else {
+        (!varying.is_empty()).then(|| {
             varying
                 .iter()
                 .map(|&k| {
@@ -582,14 +726,17 @@ impl Campaign {
                 })
                 .collect::<Vec<_>>()
                 .join(", ")
-        };
+        })
+    }
+
+    /// `failed`, `interrupted` or `pending` as `/status/state` says (`None` otherwise).
+    fn state_word(&self, v: usize) -> Option<&'static str> {
         match self.states.get(v) {
-            Some(3) => s += " (failed)",
-            Some(4) => s += " (interrupted)",
-            Some(0) => s += " (pending)",
-            _ => {}
+            Some(3) => Some("failed"),
+            Some(4) => Some("interrupted"),
+            Some(0) => Some("pending"),
+            _ => None,
         }
-        s
     }
 
     /// The variants to draw: those asked for (checked), or all, thinned evenly to fit
@@ -724,9 +871,17 @@ pub fn plot_sensors(
         c.select_variants(opts.variants.as_deref(), channels.len(), &mut summary.notes)?;
     let many = channels.len() > 1;
     let mut lines = Vec::new();
+    let bad_times = c.time.iter().filter(|t| t.is_nan()).count();
+    if bad_times > 0 {
+        summary.notes.push(format!(
+            "{bad_times} of the {} output times in /time are NaN: their samples are not drawn",
+            c.time.len()
+        ));
+    }
     for ch in &channels {
         for &v in &variants {
             let y = c.samples(ch, v)?;
+            c.nan_note(ch, v, &y, &mut summary.notes);
             let label = if many {
                 format!("{}: {}", ch.name, c.variant_label(v))
             } else {
@@ -818,6 +973,10 @@ pub fn plot_phase(
     let mut lines = Vec::new();
     for &v in &variants {
         let (xs, ys) = (c.samples(&cx, v)?, c.samples(&cy, v)?);
+        c.nan_note(&cx, v, &xs, &mut summary.notes);
+        if cy.name != cx.name {
+            c.nan_note(&cy, v, &ys, &mut summary.notes);
+        }
         lines.push(Line {
             label: c.variant_label(v),
             points: xs.into_iter().zip(ys).collect(),

@@ -123,7 +123,8 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     if args.path.any_option() {
         bail!("sweep: --control, --lambda-max, --until, --limit-points, --max-length, --max-points and --first-step need --path");
     }
-    let variants = ensemble::variants(
+    // `origin` names a variant that breaks the model by its CSV line or grid point
+    let (variants, origin) = ensemble::variants_with_origin(
         &args.model.model,
         &args.model.set,
         &args.vary,
@@ -199,7 +200,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         command_line: latdyn::output::command_line(),
     };
     if args.plan {
-        return sweep_plan(args, &c, &stage);
+        return sweep_plan(args, &c, &stage, &origin);
     }
     // --verify K: K variants of shard 1 (the whole campaign when not sharded), checked
     // before any variant runs
@@ -230,7 +231,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     };
     let (prepared, resume) = match (&args.resume, target.take()) {
         (Some(path), Some(t)) => {
-            let r = latdyn::campaign::resume(t, &c, &stage).map_err(|e| anyhow!("{e}"))?;
+            let r = latdyn::campaign::resume(t, &c, &stage, &origin).map_err(|e| anyhow!("{e}"))?;
             eprintln!(
                 "sweep --resume {}: {} variant(s) to run (not completed) of {} in the file",
                 path.display(),
@@ -241,7 +242,10 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         }
         (_, t) => {
             target = t;
-            (ensemble::prepare(&c)?, None)
+            (
+                ensemble::prepare(&c).map_err(|e| origin.name(e, &c.variants))?,
+                None,
+            )
         }
     };
     let stop = stop_flag();
@@ -530,12 +534,13 @@ pub(crate) fn sweep_plan(
     args: &SweepArgs,
     c: &latdyn::ensemble::Campaign,
     stage: &latdyn::ensemble::Stage,
+    origin: &latdyn::ensemble::Origin,
 ) -> anyhow::Result<()> {
     use latdyn::campaign;
     let n = c.variants.len();
     let shards = args.shards;
     // one compiled variant gives the time grid and sensors of the identity
-    let p = latdyn::ensemble::prepare_rows(c, vec![0])?;
+    let p = latdyn::ensemble::prepare_rows(c, vec![0]).map_err(|e| origin.name(e, &c.variants))?;
     let info = latdyn::ensemble::identify(c, &p, stage)?;
     let m0 = &p.models[0];
     let n_time = p.time.len();
@@ -545,7 +550,8 @@ pub(crate) fn sweep_plan(
         .map(|s| latdyn::sensors::components(&s.kind).len())
         .sum::<usize>()
         * n_time;
-    let probes = campaign::probe(c, &campaign::probe_indices(n, args.probe), PROBE_FRACTION)?;
+    let probes = campaign::probe(c, &campaign::probe_indices(n, args.probe), PROBE_FRACTION)
+        .map_err(|e| origin.name(e, &c.variants))?;
     let ok: Vec<f64> = probes
         .iter()
         .filter(|x| x.status == "completed")
@@ -640,7 +646,7 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     if args.accuracy.is_some() || args.frequency.is_some() || args.verify.is_some() {
         bail!("sweep --path: --accuracy, --frequency and --verify apply to dynamic runs only");
     }
-    let variants = latdyn::ensemble::variants(
+    let (variants, origin) = latdyn::ensemble::variants_with_origin(
         &args.model.model,
         &args.model.set,
         &args.vary,
@@ -658,7 +664,8 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     for &gi in &chosen {
         let mut sets = args.model.set.clone();
         sets.extend(variants[gi].iter().cloned());
-        let m = model::load(&args.model.model, &sets)?;
+        let m = model::load(&args.model.model, &sets)
+            .map_err(|e| anyhow!("{}: {e}", origin.describe(gi, &variants[gi])))?;
         opts.push(args.path.options(&m)?);
         models.push(m);
     }
