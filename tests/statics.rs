@@ -180,3 +180,40 @@ fn bend45_eight_elements_agree_with_simo_vu_quoc_at_three_loads() {
         assert!(err < 0.8, "P={p}: {x:?} vs {want:?}");
     }
 }
+
+#[test]
+fn section_forces_are_the_resultant_of_the_outer_part_in_every_component() {
+    // A clamped cantilever along x loaded at the tip by F and C: at any section the part
+    // beyond it exerts [N, Vy, Vz] = F and [T, My, Mz] = C + r × F, r = (L − x) e_x, in the
+    // section frame (here the global one: the loads are small). Until session 28 Vy read
+    // −Fy, opposite to every other component. Hermite elements are exact for the tip
+    // loads' linear moments; the loads keep the rotations at 1e-4, so 1e-3 relative.
+    let extra = r#"
+[[sensors]]
+name = "root"
+type = "section"
+beam = "beam"
+at = 0.0
+
+[[sensors]]
+name = "quarter"
+type = "section"
+beam = "beam"
+at = 0.25
+"#;
+    let (f, c) = ([3e-3, 1e-2, -2e-2], [1e-3, 2e-3, -3e-3]);
+    let m = straight_beam("clamped", 4, PROPS, f, c, extra);
+    let sol = solve_statics(&m).unwrap();
+    for (name, x) in [("root", 0.0), ("quarter", 0.25)] {
+        let s = sensor(&m, &sol.sensors, name);
+        let r = 1.0 - x;
+        // C + r e_x × F = C + r (0, −Fz, Fy)
+        let want = [f[0], f[1], f[2], c[0], c[1] - r * f[2], c[2] + r * f[1]];
+        for (k, (got, w)) in s.iter().zip(want).enumerate() {
+            assert!(
+                (got - w).abs() <= 1e-3 * w.abs(),
+                "{name} component {k}: {got} against {w} ({s:?})"
+            );
+        }
+    }
+}

@@ -216,10 +216,13 @@ pub fn strain_energy(e: &ElemData, s: &ElemState) -> f64 {
     energy(&e.props, e.l0, &deformation(e, s))
 }
 
-/// Section forces at station ξ ∈ [0, 1], convected frame: [N, Vy, Vz, T, My, Mz].
-/// N = EA s/L0 with s the mean stretch ([`stretch`], tension positive), T = GJ (φx2 − φx1)/L0, My = EI_y κ_y and
-/// Mz = EI_z κ_z with κ = dθ/dx of the Hermite section rotation, Vy = dMz/dx,
-/// Vz = dMy/dx.
+/// Section forces at station ξ ∈ [0, 1], convected frame: [N, Vy, Vz, T, My, Mz], each the
+/// resultant that the part beyond the section (towards node 2) exerts on the part before
+/// it. N = EA s/L0 with s the mean stretch ([`stretch`], tension positive),
+/// T = GJ (φx2 − φx1)/L0, My = EI_y κ_y and Mz = EI_z κ_z with κ = dθ/dx of the Hermite
+/// section rotation. Moment equilibrium of a slice, dM/dx + e_x × V = 0, gives
+/// Vy = −dMz/dx and Vz = dMy/dx. (Until session 28 Vy was dMz/dx: a tip force +F along y
+/// read Vy = −F while a force along z read Vz = +F and N, T, My, Mz were all resultants.)
 pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64) -> [f64; 6] {
     let k = deformation(e, s);
     let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
@@ -229,7 +232,7 @@ pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64) -> [f64; 6] {
     let c2 = -2.0 + 6.0 * xi;
     [
         p.ea * stretch(l, &k) / l,
-        p.eiz * 6.0 * (fz1 + fz2) / (l * l),
+        -p.eiz * 6.0 * (fz1 + fz2) / (l * l),
         p.eiy * 6.0 * (fy1 + fy2) / (l * l),
         p.gj * (fx2 - fx1) / l,
         p.eiy * (c1 * fy1 + c2 * fy2) / l,
@@ -334,4 +337,23 @@ pub(super) fn perturb_dual<T: Lane>(x: V3<T>, t: &M3<T>, d: &[T]) -> (V3<Dual<T>
         }
     }
     (xp, tp)
+}
+
+/// Rotation angles [rad] of the two node frames from the convected frame: θ_i of
+/// D_i = T_Cᵀ T_i, the angles whose sines the deformation angles are (the skew part of a
+/// rotation D is sin θ · axis, so |(φx_i, φy_i, φz_i)| = sin θ_i), here exact at any size
+/// from atan2(sin θ_i, (tr D_i − 1)/2). The strain energy is quadratic in the sines, so the
+/// element's end forces follow k sin θ cos θ = k sin(2θ)/2 where the small-deformation
+/// theory has k θ: [`crate::assembly::largest_deformation_angle`] tells how far that is.
+pub fn deformation_rotation_angles(e: &ElemData, s: &ElemState) -> [f64; 2] {
+    let (t1, t2) = node_frames(e, s);
+    let k = kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
+    let angle = |t: &Mat3, phi: &[f64]| {
+        let trace: f64 = (0..3)
+            .map(|j| crate::math::dot(mcol(&k.tc, j), crate::math::col(t, j)))
+            .sum();
+        let sin = (phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]).sqrt();
+        sin.atan2(0.5 * (trace - 1.0))
+    };
+    [angle(&t1, &k.phi[0..3]), angle(&t2, &k.phi[3..6])]
 }
