@@ -679,6 +679,100 @@ pub fn deformation_in_range(model: &Model, s: &State) -> bool {
         .all(|(ie, ed)| element::deformation_in_range(ed, &joint::elem_state(model, s, ie)))
 }
 
+/// The largest deformation angle of a state (see [`largest_deformation_angle`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeformationAngle {
+    /// element index in the model
+    pub element: usize,
+    /// the beam the element belongs to, and its index there (from 0 at the `from` end)
+    pub beam: String,
+    pub index_in_beam: usize,
+    /// elements in that beam
+    pub beam_elements: usize,
+    /// rotation of a node frame from the element's convected frame [rad]
+    pub angle: f64,
+}
+
+/// Deformation angle above which [`deformation_angle_warning`] warns [rad]: where the
+/// element's forces err by 1 %. The element measures each node's rotation θ from its
+/// convected (chord) frame by its sine (the skew part of D = T_Cᵀ T_i, see
+/// [`element::kinematics`]), and its strain energy is quadratic in the sines, so an end
+/// force is k sin θ · d(sin θ)/dθ = k sin(2θ)/2 where the small-deformation theory has
+/// k θ: relative error 1 − sin(2θ)/(2θ) = (2θ)²/6 − … ≈ 2θ²/3 (a twist θ_e per element
+/// carries T = GJ/(2ℓ) sin 2θ_e). 2θ²/3 = 1 % gives θ = √0.015 = 0.1225 rad (7.0°); the
+/// exact expression is 0.997 % there. (The sine alone, sin θ/θ ≈ 1 − θ²/6, errs by a
+/// quarter of that: 1 % at 0.245 rad, where the forces are already 4 % off.) Checked on
+/// the probes: a cantilever bent by a pure moment to 90° with 4 and 8 elements (end
+/// angles 0.196 and 0.098 rad: 2θ²/3 = 2.6 % and 0.64 %) was 2.8 % and 0.65 % off at the
+/// tip; one twisted by 1.25 rad with 4 and 16 elements (θ = 0.338, 0.078: 7.6 %, 0.41 %)
+/// 8 % and 0.41 %.
+pub const DEFORMATION_ANGLE_WARN: f64 = 0.1225;
+
+impl DeformationAngle {
+    /// Leading-order relative error of the element's forces at this angle, 2θ²/3 (see
+    /// [`DEFORMATION_ANGLE_WARN`]).
+    pub fn force_error(&self) -> f64 {
+        2.0 * self.angle * self.angle / 3.0
+    }
+}
+
+/// The element whose node frame is rotated furthest from its convected frame at `s`, and
+/// that angle (the deformation angle φ = sin θ as an angle, [`element::deformation_rotation_angles`]);
+/// `None` for a model without elements.
+pub fn largest_deformation_angle(model: &Model, s: &State) -> Option<DeformationAngle> {
+    let (element, angle) = model
+        .elem_data
+        .iter()
+        .enumerate()
+        .map(|(ie, ed)| {
+            let [a, b] = element::deformation_rotation_angles(ed, &joint::elem_state(model, s, ie));
+            // NaN (a state that blew up) stays NaN (`f64::max` would drop it) and, made
+            // positive, orders above every angle: it is no small deformation
+            (
+                ie,
+                if a.is_nan() || b.is_nan() {
+                    f64::NAN.abs()
+                } else {
+                    a.max(b)
+                },
+            )
+        })
+        .max_by(|x, y| x.1.total_cmp(&y.1))?;
+    let b = &model.beams[model.elements[element].beam];
+    Some(DeformationAngle {
+        element,
+        beam: b.name.clone(),
+        index_in_beam: b.elements.iter().position(|&e| e == element).unwrap_or(0),
+        beam_elements: b.elements.len(),
+        angle,
+    })
+}
+
+/// A warning when an element of state `s` deforms beyond [`DEFORMATION_ANGLE_WARN`]
+/// (its forces more than 1 % off, the small-deformation-per-element assumption broken),
+/// naming the element, the angle, the estimated error and the fix; `None` otherwise.
+/// Statics adds it to its report; the dynamics may call it at output samples.
+pub fn deformation_angle_warning(model: &Model, s: &State) -> Option<String> {
+    let d = largest_deformation_angle(model, s)?;
+    // a NaN angle is not warned here: the caller's own check reports a state that blew up
+    if d.angle.is_nan() || d.angle <= DEFORMATION_ANGLE_WARN {
+        return None;
+    }
+    Some(format!(
+        "large deformation per element: element {} of beam `{}` ({} elements) has a node \
+         frame turned {:.3} rad ({:.1}°) from its chord frame; the element measures such \
+         angles by their sines, so its forces are off by about {:.1} % (2θ²/3; 1 % at \
+         {DEFORMATION_ANGLE_WARN} rad). Use more elements on this beam (halving the element \
+         length quarters the error)",
+        d.index_in_beam,
+        d.beam,
+        d.beam_elements,
+        d.angle,
+        d.angle.to_degrees(),
+        100.0 * d.force_error(),
+    ))
+}
+
 /// Scale a Newton increment so no angle changes by more than `max_angle` radians: full
 /// steps across large rotations land on spurious equilibria.
 pub fn limit_rotation_step(model: &Model, dx: &mut [f64], max_angle: f64) {

@@ -1849,11 +1849,27 @@ impl Compiler<'_> {
                         ));
                     }
                     let elems = &beams[b].elements;
-                    let n = elems.len();
-                    // snap to the nearest element end or midpoint
-                    let m = (2.0 * at * n as f64).round() / 2.0;
-                    let k = (m.floor() as usize).min(n - 1);
-                    let (element, xi) = (elems[k], m - k as f64);
+                    let n = elems.len() as f64;
+                    // The station is evaluated where it was asked for, not snapped to an
+                    // element end or midpoint (which reported the root moment, −1.0, for
+                    // at = 0.24 on one tip-loaded element whose moment there is −0.76):
+                    // within an element the section forces are the element's own fields
+                    // at any ξ ∈ [0, 1] (`section_forces`: N, Vy, Vz, T constant, My, Mz
+                    // linear in ξ from the Hermite curvature), so the value at ξ is what
+                    // the element represents there, exact wherever the element is (tip
+                    // loads), and snapping to ξ = 0, ½, 1 only moved the station. With a
+                    // distributed load the elements' moments jump at a node, so a station
+                    // within 1e-9 of the beam length of a node is put on that node (the
+                    // element after it, the last element's end at the tip): round-off in
+                    // `at · n` does not choose the element.
+                    let pos = at * n;
+                    let pos = if (pos - pos.round()).abs() <= 1e-9 * n {
+                        pos.round()
+                    } else {
+                        pos
+                    };
+                    let k = (pos.floor() as usize).min(elems.len() - 1);
+                    let (element, xi) = (elems[k], (pos - k as f64).clamp(0.0, 1.0));
                     match &s.component {
                         None => SensorKind::Section { element, xi },
                         Some(c) => {
@@ -2642,29 +2658,37 @@ mod tests {
     }
 
     #[test]
-    fn section_sensor_snaps_to_element_ends_and_midpoints() {
+    fn section_sensor_is_evaluated_at_the_requested_station() {
+        // two elements: at = 0.2 is ξ = 0.4 of the first, not its midpoint; a station on a
+        // node (or within round-off of one) is the start of the element after it
         let m = compile(&with_beam(
             "[[sensors]]\nname = \"s0\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.2\n\
              [[sensors]]\nname = \"s1\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.45\n\
              [[sensors]]\nname = \"s2\"\ntype = \"section\"\nbeam = \"bm\"\nat = 1\n\
              [[sensors]]\nname = \"d\"\ntype = \"direction\"\nnode = \"b\"\ndirection = [0, 2, 0]\n\
-             [[sensors]]\nname = \"e\"\ntype = \"energy\"\n",
+             [[sensors]]\nname = \"e\"\ntype = \"energy\"\n\
+             [[sensors]]\nname = \"s3\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.4999999999999\n\
+             [[sensors]]\nname = \"s4\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.5\n\
+             [[sensors]]\nname = \"s5\"\ntype = \"section\"\nbeam = \"bm\"\nat = 0.75\n",
         ));
         let kinds: Vec<_> = m.sensors.iter().map(|s| s.kind.clone()).collect();
         assert_eq!(
             kinds[0],
             SensorKind::Section {
                 element: 0,
-                xi: 0.5
+                xi: 0.4
             }
         );
         assert_eq!(
             kinds[1],
             SensorKind::Section {
-                element: 1,
-                xi: 0.0
+                element: 0,
+                xi: 0.9
             }
         );
+        for (k, element, xi) in [(5, 1, 0.0), (6, 1, 0.0), (7, 1, 0.5)] {
+            assert_eq!(kinds[k], SensorKind::Section { element, xi }, "sensor {k}");
+        }
         assert_eq!(
             kinds[2],
             SensorKind::Section {

@@ -2703,8 +2703,22 @@ async fn run_fixed(
             on_sample(hist.t[i], &vals);
         }
     }
+    // the most deformed element over the samples, and when (a resumed run's kept part
+    // is not seen again: its samples came from the same model at a larger step)
+    let mut deformed: Option<(crate::assembly::DeformationAngle, f64)> = None;
+    fn deformation(
+        deformed: &mut Option<(crate::assembly::DeformationAngle, f64)>,
+        integ: &Integrator,
+    ) {
+        if let Some(d) = crate::assembly::largest_deformation_angle(integ.model, &integ.s) {
+            if !d.angle.is_nan() && deformed.as_ref().is_none_or(|(w, _)| d.angle > w.angle) {
+                *deformed = Some((d, integ.s.t));
+            }
+        }
+    }
     let mut record = |integ: &Integrator, hist: &mut History, balance: &mut BalanceAccount| {
         let t0 = std::time::Instant::now();
+        deformation(&mut deformed, integ);
         balance.record(integ);
         let vals = integ.sample();
         on_sample(integ.s.t, &vals);
@@ -2743,6 +2757,9 @@ async fn run_fixed(
             // last ones (and those before a failure) take the step ends there are
             let done = failure.is_some() || integ.s.t >= t_end;
             let t0 = std::time::Instant::now();
+            if next < n_out && ends.covers(times[next], done) {
+                deformation(&mut deformed, &integ);
+            }
             while next < n_out && ends.covers(times[next], done) {
                 let vals = ends.at(times[next]);
                 on_sample(times[next], &vals);
@@ -2784,6 +2801,23 @@ async fn run_fixed(
         }
     }
     let mut stats = integ.run_stats();
+    if let Some((d, t)) =
+        deformed.filter(|(d, _)| d.angle > crate::assembly::DEFORMATION_ANGLE_WARN)
+    {
+        stats.notes.push(format!(
+            "large deformation per element: at t = {t:.4} s element {} of beam `{}` ({} \
+             elements) has a node frame turned {:.3} rad ({:.1}°) from its chord frame; the \
+             element measures such angles by their sines, so its forces are off by about \
+             {:.1} % (2θ²/3; 1 % at {} rad). Use more elements on this beam",
+            d.index_in_beam,
+            d.beam,
+            d.beam_elements,
+            d.angle,
+            d.angle.to_degrees(),
+            100.0 * d.force_error(),
+            crate::assembly::DEFORMATION_ANGLE_WARN,
+        ));
+    }
     if sizes {
         (stats.matrix_nnz, stats.factor_nnz) = integ.sys.factor_size();
     }

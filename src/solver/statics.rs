@@ -48,6 +48,9 @@ pub struct StaticsReport {
     pub load_steps: usize,
     pub newton_iterations: usize,
     pub rejected_steps: usize,
+    /// notes on the solution that do not stop it (an element deformed beyond the
+    /// element's small-deformation range: [`crate::assembly::deformation_angle_warning`])
+    pub warnings: Vec<String>,
 }
 
 /// Largest angle change of one Newton iteration [rad].
@@ -150,6 +153,7 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
         load_steps: 0,
         newton_iterations: 0,
         rejected_steps: 0,
+        warnings: Vec::new(),
     };
     // zero loads (every load and gravity zero or scaled to zero): the reference is the
     // equilibrium, one Newton solve at full load confirms it (0 iterations when it is)
@@ -197,6 +201,8 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
         }
     }
     joint::update_kinematics(model, s);
+    rep.warnings
+        .extend(crate::assembly::deformation_angle_warning(model, s));
     Ok(rep)
 }
 

@@ -29,6 +29,10 @@ pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let sol = latdyn::solver::solve_statics(&m).with_context(|| m.path.clone())?;
     let wall = t0.elapsed().as_secs_f64();
+    let warnings = &sol.report.warnings;
+    for w in warnings {
+        eprintln!("warning: {}: {w}", m.path);
+    }
     if args.json {
         let v = serde_json::json!({
             "sensors": sensor_map(&m, &sol.sensors),
@@ -36,6 +40,7 @@ pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
             "load_steps": sol.report.load_steps,
             "newton_iterations": sol.report.newton_iterations,
             "rejected_steps": sol.report.rejected_steps,
+            "warnings": warnings,
             "wall_s": wall,
         });
         emit(&format!("{v}\n"))
@@ -68,6 +73,20 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let r = path::follow(&m, &opts);
     let wall = t0.elapsed().as_secs_f64();
+    // the small-deformation check of plain statics, at the path's last point only (the
+    // path keeps no other state; an element is usually most deformed at the end of a
+    // monotonic path, not always after a snap-back)
+    let warnings: Vec<String> = if r.error.is_none() && !r.lambda.is_empty() {
+        latdyn::assembly::deformation_angle_warning(&m, &r.state)
+            .map(|w| format!("at the path's last point: {w}"))
+            .into_iter()
+            .collect()
+    } else {
+        Vec::new()
+    };
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", m.path);
+    }
     let mut out_err = None;
     if let Some(t) = target {
         let meta = path::campaign_meta(&[&m], r.lambda.clone(), latdyn::output::command_line(), 1);
@@ -78,7 +97,11 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
         out_err = written.err();
     }
     if args.model.json {
-        emit(&format!("{}\n", path::to_json(&m, &r, wall)))?;
+        let mut v = path::to_json(&m, &r, wall);
+        if let Some(o) = v.as_object_mut() {
+            o.insert("warnings".into(), serde_json::json!(warnings));
+        }
+        emit(&format!("{v}\n"))?;
     } else {
         let mut s = format!(
             "path {} ({} control): {} points, {} Newton iterations, {} rejected steps, {:.3} s; \
