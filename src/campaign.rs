@@ -500,6 +500,10 @@ pub enum MergeError {
     Refused(String),
     #[error(transparent)]
     Output(#[from] OutputError),
+    /// `sweep --resume`: a signal stopped the preparation of the variants to run (see
+    /// [`resume_until`]); the file was not touched.
+    #[error("{0}")]
+    Interrupted(String),
 }
 
 /// Merge the shard files `inputs` of one campaign into `target` (see README "Campaigns
@@ -846,6 +850,25 @@ pub fn resume(
     stage: &crate::ensemble::Stage,
     origin: &crate::ensemble::Origin,
 ) -> Result<Resume, MergeError> {
+    resume_until(
+        target,
+        c,
+        stage,
+        origin,
+        &std::sync::atomic::AtomicBool::new(false),
+    )
+}
+
+/// [`resume`], its preparation stopped by `stop` (a signal's flag) between two variants
+/// ([`crate::ensemble::prepare_rows_until`]): then [`MergeError::Interrupted`], and the
+/// file is left as it was (it is only reopened for writing after the preparation).
+pub fn resume_until(
+    target: OutputTarget,
+    c: &crate::ensemble::Campaign,
+    stage: &crate::ensemble::Stage,
+    origin: &crate::ensemble::Origin,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Result<Resume, MergeError> {
     let f = CampaignFile::open(target.path())?;
     let rerun: Vec<bool> = f
         .status
@@ -859,9 +882,15 @@ pub fn resume(
         .map(|&r| f.global_index[r])
         .filter(|&g| g < c.variants.len())
         .collect();
-    let prepared = crate::ensemble::prepare_rows(c, gis).map_err(|e| {
-        let e = origin.name(e, &c.variants);
-        MergeError::Refused(format!("--resume {}: {e}", f.path.display()))
+    let prepared = crate::ensemble::prepare_rows_until(c, gis, stop).map_err(|e| match e {
+        e @ crate::ensemble::EnsembleError::Interrupted { .. } => MergeError::Interrupted(format!(
+            "--resume {}: {e}; the file is left as it was",
+            f.path.display()
+        )),
+        e => {
+            let e = origin.name(e, &c.variants);
+            MergeError::Refused(format!("--resume {}: {e}", f.path.display()))
+        }
     })?;
     let now = crate::ensemble::identify(c, &prepared, stage)
         .map_err(|e| MergeError::Refused(e.to_string()))?;

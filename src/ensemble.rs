@@ -58,6 +58,13 @@ pub enum EnsembleError {
         at: String,
         message: String,
     },
+    /// A signal stopped the preparation ([`prepare_until`]) before every variant was
+    /// compiled: nothing ran.
+    #[error(
+        "interrupted by a signal while preparing the variants ({compiled} of {total} \
+         compiled)"
+    )]
+    Interrupted { compiled: usize, total: usize },
 }
 
 impl EnsembleError {
@@ -399,12 +406,63 @@ pub fn grid(ranges: &[Range]) -> Vec<Vec<(String, f64)>> {
     out
 }
 
-/// A CSV field without its surrounding white space and one pair of double quotes.
-fn unquote(field: &str) -> &str {
-    let f = field.trim();
-    f.strip_prefix('"')
-        .and_then(|x| x.strip_suffix('"'))
-        .map_or(f, str::trim)
+/// The fields of one CSV line (RFC 4180 on one physical line): separated by commas,
+/// each without its surrounding white space. A field in double quotes may contain commas,
+/// and `""` inside the quotes is one literal quote; the quotes and the white space just
+/// inside them are dropped (a spreadsheet's `" 1.5 "` is 1.5). The split respects the
+/// quotes, so `"1,5",2` is two fields, the first `1,5` (which is then not a number, and
+/// is reported as such instead of miscounting the columns). The error says what is wrong
+/// with the line: a quote not closed on it, or text after a closing quote.
+fn split_csv_line(line: &str) -> Result<Vec<String>, String> {
+    let mut fields = Vec::new();
+    let mut rest = line;
+    loop {
+        let column = fields.len() + 1;
+        let t = rest.trim_start();
+        let Some(q) = t.strip_prefix('"') else {
+            match t.split_once(',') {
+                Some((f, r)) => {
+                    fields.push(f.trim().to_string());
+                    rest = r;
+                    continue;
+                }
+                None => {
+                    fields.push(t.trim().to_string());
+                    return Ok(fields);
+                }
+            }
+        };
+        let mut f = String::new();
+        let mut it = q.char_indices();
+        let after = loop {
+            match it.next() {
+                Some((i, '"')) if q[i + 1..].starts_with('"') => {
+                    it.next();
+                    f.push('"');
+                }
+                Some((i, '"')) => break q[i + 1..].trim_start(),
+                Some((_, c)) => f.push(c),
+                None => {
+                    return Err(format!(
+                        "field {column}: the quote that opens it is not closed on this line \
+                         (a quote inside a quoted field is written twice, `\"\"`)"
+                    ))
+                }
+            }
+        };
+        fields.push(f.trim().to_string());
+        match after.strip_prefix(',') {
+            Some(r) => rest = r,
+            None if after.is_empty() => return Ok(fields),
+            None => {
+                let junk = after.split(',').next().unwrap_or(after).trim_end();
+                return Err(format!(
+                    "field {column}: `{junk}` follows its closing quote (a quote inside a \
+                     quoted field is written twice, `\"\"`)"
+                ));
+            }
+        }
+    }
 }
 
 /// Variants from a CSV file: a header of parameter names, one row of values per variant
@@ -425,10 +483,12 @@ fn read_variants_table(path: &Path) -> Result<(Vec<Values>, Vec<usize>), Ensembl
         .lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-    let (_, header) = lines
+    let (header_ln, header) = lines
         .next()
         .ok_or_else(|| EnsembleError::Invalid(format!("{}: empty file", path.display())))?;
-    let names: Vec<String> = header.split(',').map(|s| unquote(s).to_string()).collect();
+    let names: Vec<String> = split_csv_line(header).map_err(|e| {
+        EnsembleError::Invalid(format!("{}:{}: {e}", path.display(), header_ln + 1))
+    })?;
     for (i, n) in names.iter().enumerate() {
         if n.is_empty() {
             return Err(EnsembleError::Invalid(format!(
@@ -461,7 +521,8 @@ fn read_variants_table(path: &Path) -> Result<(Vec<Values>, Vec<usize>), Ensembl
                 )
             )));
         }
-        let vals: Vec<&str> = line.split(',').map(unquote).collect();
+        let vals = split_csv_line(line)
+            .map_err(|e| EnsembleError::Invalid(format!("{}:{}: {e}", path.display(), ln + 1)))?;
         if vals.len() != names.len() {
             return Err(EnsembleError::Invalid(format!(
                 "{}:{}: {} values for {} columns",
@@ -472,16 +533,22 @@ fn read_variants_table(path: &Path) -> Result<(Vec<Values>, Vec<usize>), Ensembl
             )));
         }
         let mut row = Vec::new();
-        for (n, v) in names.iter().zip(vals) {
+        for (k, (n, v)) in names.iter().zip(&vals).enumerate() {
             let x: f64 = v
                 .parse()
                 .ok()
                 .filter(|x: &f64| x.is_finite())
                 .ok_or_else(|| {
                     EnsembleError::Invalid(format!(
-                        "{}:{}: column `{n}`: `{v}` is not a finite number",
+                        "{}:{}: column `{n}` (field {}): `{v}` is not a finite number{}",
                         path.display(),
-                        ln + 1
+                        ln + 1,
+                        k + 1,
+                        if v.contains(',') {
+                            " (write the decimal point as `.`)"
+                        } else {
+                            ""
+                        }
                     ))
                 })?;
             row.push((n.clone(), x));
@@ -598,6 +665,13 @@ pub struct Prepared {
 
 /// Compile every variant (of this shard) and check they share topology and time grid.
 pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
+    prepare_until(c, &AtomicBool::new(false))
+}
+
+/// [`prepare`], stopped by `stop` (a signal's flag) between two variants: a campaign of
+/// large models spends seconds compiling before any variant runs, and Ctrl-C there must
+/// end it as cleanly as during the run. Then [`EnsembleError::Interrupted`] is returned.
+pub fn prepare_until(c: &Campaign, stop: &AtomicBool) -> Result<Prepared, EnsembleError> {
     let n_all = c.variants.len();
     let (k, n) = c.shard.unwrap_or((1, 1));
     if n == 0 || k == 0 || k > n {
@@ -606,12 +680,21 @@ pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
         )));
     }
     let global_index: Vec<usize> = (0..n_all).filter(|i| i % n == k - 1).collect();
-    prepare_rows(c, global_index)
+    prepare_rows_until(c, global_index, stop)
 }
 
 /// [`prepare`] for the variants with these global indices (`sweep --resume`: the ones
 /// a campaign file still lacks), whatever the shard.
 pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, EnsembleError> {
+    prepare_rows_until(c, global_index, &AtomicBool::new(false))
+}
+
+/// [`prepare_rows`], stopped by `stop` as [`prepare_until`].
+pub fn prepare_rows_until(
+    c: &Campaign,
+    global_index: Vec<usize>,
+    stop: &AtomicBool,
+) -> Result<Prepared, EnsembleError> {
     if let Some(g) = global_index.iter().find(|&&g| g >= c.variants.len()) {
         return Err(EnsembleError::Invalid(format!(
             "variant {g} is outside the campaign's {} variants",
@@ -624,7 +707,17 @@ pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, 
     // named with its values (the model error alone points at the model's line, the same
     // for every variant).
     let parsed = model::parse_file(&c.model_path)?;
+    let total = global_index.len();
+    let compiled = std::sync::atomic::AtomicUsize::new(0);
+    let interrupted = || EnsembleError::Interrupted {
+        compiled: compiled.load(Ordering::SeqCst),
+        total,
+    };
     let compile = |gi: usize| -> Result<Model, EnsembleError> {
+        // checked before each variant: the ones in flight finish (one compile is short)
+        if stop.load(Ordering::SeqCst) {
+            return Err(interrupted());
+        }
         let mut sets = c.base.clone();
         sets.extend(c.variants[gi].iter().cloned());
         let mut m = parsed
@@ -633,21 +726,27 @@ pub fn prepare_rows(c: &Campaign, global_index: Vec<usize>) -> Result<Prepared, 
         if c.accuracy.is_some() {
             m.solver.accuracy = c.accuracy;
         }
+        compiled.fetch_add(1, Ordering::SeqCst);
         Ok(m)
     };
     let models: Vec<Model> = if c.threads > 1 && global_index.len() > 1 {
-        let compiled: Vec<Result<Model, EnsembleError>> = rayon::ThreadPoolBuilder::new()
+        let results: Vec<Result<Model, EnsembleError>> = rayon::ThreadPoolBuilder::new()
             .num_threads(c.threads)
             .build()
             .map_err(|e| EnsembleError::Invalid(format!("thread pool: {e}")))?
             .install(|| global_index.par_iter().map(|&gi| compile(gi)).collect());
-        compiled.into_iter().collect::<Result<_, _>>()?
+        if stop.load(Ordering::SeqCst) {
+            return Err(interrupted());
+        }
+        results.into_iter().collect::<Result<_, _>>()?
     } else {
         global_index
             .iter()
             .map(|&gi| compile(gi))
             .collect::<Result<_, _>>()?
     };
+    // a signal after the last variant compiled: the checks below and the symbolic
+    // analysis are quick, the run checks the flag before its first step
     let reference = if models.is_empty() {
         let mut sets = c.base.clone();
         sets.extend(c.variants.first().into_iter().flatten().cloned());

@@ -564,3 +564,68 @@ fn a_variant_that_breaks_the_model_is_named_by_its_csv_line_or_grid_point() {
     assert_eq!(v["status"], "complete", "{v}");
     assert_eq!(v["failed_variants"], 0, "{v}");
 }
+
+#[test]
+fn a_quoted_variants_field_may_hold_a_comma_and_a_doubled_quote_and_is_then_judged_as_a_number() {
+    let m = "models/pendulum.toml";
+    // split on commas before the quotes were removed: "1,5" made three fields, and the
+    // error miscounted the columns ("3 values for 2 columns")
+    let comma = temp(
+        "quoted_comma.csv",
+        "\"theta0\",\"m\"\n# a decimal comma\n\"0.1\",\"2\"\n\"1,5\",3\n",
+    );
+    let c = comma.to_str().unwrap();
+    let e = usage_error(
+        &["sweep", m, "--variants", c, "--set", "t_end=0.01"],
+        &format!("{c}:4: column `theta0` (field 1): `1,5` is not a finite number"),
+    );
+    assert!(!e.contains("values for"), "{e}");
+    // `""` inside quotes is one literal quote, a part of the field
+    let dq = temp("quoted_quote.csv", "theta0,m\n0.1,1\n\"0.2\"\"\",2\n");
+    let d = dq.to_str().unwrap();
+    usage_error(
+        &["sweep", m, "--variants", d, "--set", "t_end=0.01"],
+        &format!("{d}:3: column `theta0` (field 1): `0.2\"` is not a finite number"),
+    );
+    // a quote not closed on its line, and text after a closing quote
+    let open = temp("quoted_open.csv", "theta0,m\n\"0.1,1\n");
+    let o = open.to_str().unwrap();
+    usage_error(
+        &["sweep", m, "--variants", o, "--set", "t_end=0.01"],
+        &format!("{o}:2: field 1: the quote that opens it is not closed on this line"),
+    );
+    let after = temp("quoted_after.csv", "theta0,m\n\"0.1\"x,1\n");
+    let a = after.to_str().unwrap();
+    usage_error(
+        &["sweep", m, "--variants", a, "--set", "t_end=0.01"],
+        &format!("{a}:2: field 1: `x` follows its closing quote"),
+    );
+    // a spreadsheet's export: byte-order mark, CRLF, quoted names and values, spaces
+    // around and inside the quotes; the values are read as written
+    let ok = temp(
+        "quoted_ok.csv",
+        "\u{feff}\"theta0\", \"m\"\r\n\" 0.1 \",\"1\"\r\n0.2 , \"2\"\r\n",
+    );
+    let out = latdyn(&[
+        "sweep",
+        m,
+        "--variants",
+        ok.to_str().unwrap(),
+        "--set",
+        "t_end=0.01",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let params: Vec<(f64, f64)> = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| {
+            let p = &x["parameters"];
+            (p["theta0"].as_f64().unwrap(), p["m"].as_f64().unwrap())
+        })
+        .collect();
+    assert_eq!(params, vec![(0.1, 1.0), (0.2, 2.0)]);
+}

@@ -526,3 +526,53 @@ fn past_the_axial_divergence_modes_warn_and_a_steady_start_fails_with_the_reason
         }
     }
 }
+
+/// Warnings of a `modes --json` result, as strings.
+fn warnings(v: &serde_json::Value) -> Vec<String> {
+    v["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn count_above_the_modes_a_model_has_is_warned_at_rest_rotating_and_over_vary() {
+    // `--count 60` on the cantilever returned its 40 modes without a word
+    let v = modes_json(&["models/cantilever.toml", "--count", "60"]);
+    assert_eq!(freqs(&v).len(), 40);
+    assert_eq!(v["free_dofs"], 48);
+    let w = warnings(&v);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("--count 60: the model has only 40 modes")
+                && w.contains("48 free coordinates, 8 of them massless")),
+        "{w:?}"
+    );
+    // exactly as many as there are: no warning
+    let v = modes_json(&["models/cantilever.toml", "--count", "40"]);
+    assert_eq!(freqs(&v).len(), 40);
+    assert!(!warnings(&v).iter().any(|w| w.contains("--count")), "{v}");
+    // without --json the warning goes to stderr
+    let out = latdyn(&["modes", "models/cantilever.toml", "--count", "60"]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("warning: --count 60: the model has only 40 modes"),
+        "{err}"
+    );
+    // the rotating frame (a spinning hub)
+    let rot = "models/rotating_cantilever.toml";
+    let v = modes_json(&[rot, "--set", "omega=2", "--count", "100"]);
+    let n = freqs(&v).len();
+    assert_eq!(v["about"], "steady_rotation");
+    let want = format!("--count 100: the model has only {n} modes in the rotating frame");
+    assert!(warnings(&v).iter().any(|w| w.contains(&want)), "{v}");
+    // followed over a speed range
+    let v = modes_json(&[rot, "--vary", "omega=1:2:2", "--count", "100"]);
+    let branches = v["branches"].as_array().unwrap().len();
+    assert!(branches < 100, "{branches}");
+    let want = format!("--count 100: the model has only {branches} modes in the rotating frame");
+    assert!(warnings(&v).iter().any(|w| w.contains(&want)), "{v}");
+}

@@ -205,6 +205,63 @@ fn sighup_stops_a_sweep_like_sigint() {
     assert_eq!(rust_summary(&path).0, "interrupted");
 }
 
+/// SIGINT and SIGTERM while a sweep compiles its variants (the 18-bay Mini-Mast: about
+/// 40 ms per variant, so 40 variants on one thread take over a second before any runs)
+/// killed the process: the handler was installed only after the preparation, so no
+/// summary was printed and `c.h5.lock` was left. The lock file appears when the output is
+/// claimed, after the handler is installed and just before the preparation, so the
+/// signal is sent then. On a slow machine the preparation may end first; either way the
+/// sweep must exit 4 with the JSON summary and no lock left: interrupted while preparing,
+/// nothing is written (the path is left as it was); interrupted while running, the file
+/// is valid and marked interrupted.
+#[test]
+fn a_signal_during_the_preparation_of_a_sweep_exits_4_with_a_summary_and_no_lock() {
+    for sig in ["INT", "TERM"] {
+        let dir = scratch(&format!("signal_in_preparation_{sig}"));
+        let path = dir.join("c.h5");
+        let lock = dir.join("c.h5.lock");
+        let child = spawn(latdyn(&[
+            "sweep",
+            "models/minimast.toml",
+            "--set",
+            "bays=18",
+            "--vary",
+            "rho=1500:1700:40",
+            "--threads",
+            "1",
+            "--json",
+            "-o",
+            s(&path),
+        ]));
+        common::wait_until(60, "the claimed output's lock file", || lock.exists());
+        signal(&child, sig);
+        let out = finish(child, 60);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(4), "SIG{sig}: {err}");
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|e| panic!("SIG{sig}: no JSON summary ({e}); stderr: {err}"));
+        assert_eq!(v["status"], "interrupted", "SIG{sig}: {v}");
+        let message = v["message"].as_str().unwrap();
+        assert!(err.contains(message), "SIG{sig}: the error line: {err}");
+        if message.contains("while preparing the variants") {
+            // interrupted during preparation: no variant ran, nothing written
+            assert!(
+                message.contains("of 40 compiled") && message.contains("was not written"),
+                "{message}"
+            );
+            assert_eq!(v["variants"], serde_json::json!([]), "{v}");
+            assert!(!path.exists(), "SIG{sig}: no file written: {message}");
+        } else {
+            // the preparation had ended: interrupted while running, as any sweep
+            println!("SIG{sig} arrived after the preparation: {message}");
+            assert_eq!(v["variants"].as_array().unwrap().len(), 40, "{v}");
+            assert_eq!(rust_summary(&path).0, "interrupted");
+        }
+        assert!(!lock.exists(), "SIG{sig}: lock file removed");
+        no_temporaries(&dir);
+    }
+}
+
 #[test]
 fn sigterm_mid_run_keeps_the_samples_so_far_marked_interrupted() {
     let dir = scratch("sigterm_run");

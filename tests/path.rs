@@ -473,3 +473,71 @@ joint = "root_hinge"
     assert!((y / want - 1.0).abs() < 0.01, "tip y {y} vs {want}");
     assert_eq!(*r.lambda.last().unwrap(), 1.0);
 }
+
+/// `statics --path --json` of Lee's frame with these extra arguments: exit code, JSON.
+fn lee_json(args: &[&str]) -> (Option<i32>, serde_json::Value, String) {
+    let out = bin()
+        .args(["statics", &models("lee_frame.toml"), "--path", "--json"])
+        .args(args)
+        .env_remove("LATDYN_LIMITS")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    let v = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{args:?}: no JSON ({e}): {err}"));
+    (out.status.code(), v, err)
+}
+
+fn lambdas(v: &serde_json::Value) -> Vec<f64> {
+    v["lambda"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn a_huge_lambda_max_starts_like_an_unbounded_path_and_a_small_one_keeps_its_two_percent() {
+    // --lambda-max 1e15 (a bound meant as "none") made the first step 2e13 load factors:
+    // 30 halvings reached only 9.3e3, and the path failed at once (exit 3)
+    let (code, huge, err) = lee_json(&["--lambda-max", "1e15", "--max-points", "5"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(huge["stopped_by"], "max_points", "{huge}");
+    let l = lambdas(&huge);
+    assert_eq!(l.len(), 5);
+    assert_eq!(l[1], 0.02, "first step 2 % of the loads as written: {l:?}");
+    // any bound above the natural scale λ = 1 starts the same path: the bound is where
+    // to stop, not a step size
+    let (code, big, err) = lee_json(&["--lambda-max", "50", "--max-points", "5"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(lambdas(&big), l);
+    // at or below it, the first step stays 2 % of λ_max, as before
+    for (lmax, first) in [("1", 0.02), ("0.5", 0.01)] {
+        let (code, v, err) = lee_json(&["--lambda-max", lmax, "--max-points", "3"]);
+        assert_eq!(code, Some(0), "{err}");
+        assert!((lambdas(&v)[1] - first).abs() < 1e-15, "λ_max {lmax}: {v}");
+    }
+}
+
+#[test]
+fn a_path_whose_first_step_never_converges_says_so_and_suggests_first_step() {
+    // the message reported the untouched start (λ = 0, "worst residual 0.000e0 at dof
+    // ...") as if it explained the failure
+    let (code, v, err) = lee_json(&[
+        "--lambda-max",
+        "1e15",
+        "--first-step",
+        "1e15",
+        "--max-points",
+        "5",
+    ]);
+    assert_eq!(code, Some(3), "{err}");
+    let msg = v["message"].as_str().unwrap();
+    assert!(msg.contains("no first step converged"), "{msg}");
+    assert!(msg.contains("30 halvings down to 9.313e5"), "{msg}");
+    assert!(msg.contains("--first-step"), "{msg}");
+    assert!(!msg.contains("residual"), "{msg}");
+    assert_eq!(v["points"], 1);
+    assert!(err.contains(msg), "{err}");
+}

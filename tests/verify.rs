@@ -138,9 +138,11 @@ fn beam_sweep(
 }
 
 /// Fine: 8 elements, dt = 1 ms (measured: 0.54 % at most). Coarse: 2 elements, dt =
-/// 20 ms (5.0 %).
+/// 40 ms (5.3 %). (Until session 28 the coarse case was dt = 20 ms, 5.0 % off; most of
+/// that was the start's zero acceleration where the massless torsion made M singular:
+/// with a consistent start it is 0.86 %.)
 const FINE: (&str, &str) = ("8", "1e-3");
-const COARSE: (&str, &str) = ("2", "0.02");
+const COARSE: (&str, &str) = ("2", "0.04");
 
 #[test]
 fn verify_fine_campaign_reports_small_differences_without_warning() {
@@ -190,10 +192,11 @@ fn verify_coarse_campaign_warns_naming_sensor_and_variant() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("warning: verify: variant"), "{stderr}");
     assert!(stderr.contains("EXCEEDED"), "{stderr}");
-    // the campaign's own target replaces the default: 10 % is met
+    // the campaign's own target replaces the default: 10 % is met (at dt = 20 ms; at
+    // 40 ms the axial tip.x moves 12 % of its small range)
     let v = json(&beam_sweep(
         COARSE.0,
-        COARSE.1,
+        "0.02",
         &["--verify", "1", "--accuracy", "0.1"],
         None,
     ));
@@ -343,7 +346,7 @@ print(json.dumps(out))
     assert_eq!(h["target_source"], "default");
     assert_eq!(h["variants"], serde_json::json!([0, 4]));
     assert_eq!(h["status"], serde_json::json!(["verified", "verified"]));
-    assert_eq!(h["dt"], serde_json::json!([[0.02, 0.01], [0.02, 0.01]]));
+    assert_eq!(h["dt"], serde_json::json!([[0.04, 0.02], [0.04, 0.02]]));
     assert_eq!(h["elements"], serde_json::json!([[2, 4], [2, 4]]));
     assert_eq!(h["max_rel_diff"].as_f64().unwrap(), worst);
     assert_eq!(h["warnings"].as_array().unwrap().len(), n_warnings);

@@ -72,17 +72,40 @@ pub struct PathOptions {
 }
 
 impl PathOptions {
+    /// Options ending the path at μ = `max_param`, with the first step of
+    /// [`PathOptions::with_scale`] for the control's natural scale: 1 for the load factor
+    /// (the loads as written), `max_param` for the drivers (their pseudo-time ends at
+    /// t_end by default; [`crate::solver::path`]'s callers that know t_end pass it).
     pub fn new(control: Control, max_param: f64) -> PathOptions {
+        let scale = match control {
+            Control::Load => 1.0,
+            Control::Drivers if max_param.is_finite() => max_param,
+            Control::Drivers => 1.0,
+        };
+        PathOptions::with_scale(control, max_param, scale)
+    }
+
+    /// [`PathOptions::new`] with the natural scale of μ given: the first step is 2 % of
+    /// `max_param` or of `scale`, whichever is smaller. `max_param` is where the user
+    /// wants the path to stop, not how far the structure can be pushed in one step: with
+    /// `--lambda-max 1e15` (in effect "no bound", stopping on `--max-points` or
+    /// `--until`) a first step of 2e13 load factors was hopeless and 30 halvings did not
+    /// bring it down to anything that converges. The scale of the load factor is that of
+    /// the loads as written (λ = 1), so a large bound starts as an unbounded path does
+    /// (Δλ = 0.02), and a bound ≤ `scale` (the default λ_max = 1, or a smaller one) keeps
+    /// its 2 % exactly as before. Later steps grow by the arc-length control.
+    pub fn with_scale(control: Control, max_param: f64, scale: f64) -> PathOptions {
+        let scale = if scale.is_finite() && scale > 0.0 {
+            scale
+        } else {
+            1.0
+        };
         PathOptions {
             control,
             max_param,
             max_length: f64::INFINITY,
             max_points: 2000,
-            first_step: if max_param.is_finite() {
-                0.02 * max_param
-            } else {
-                0.02
-            },
+            first_step: 0.02 * max_param.min(scale),
             max_growth: 4.0,
             until: None,
             limit_points: None,
@@ -150,6 +173,20 @@ pub enum PathError {
         iterations: usize,
         residual: f64,
         dof: String,
+    },
+    /// The first step (plain Newton at μ = first step from the start) did not converge
+    /// even halved [`MAX_HALVINGS`] times: the path has only its start.
+    #[error(
+        "path: no first step converged: plain Newton from the start at {what} = {first:.3e} \
+         and at each of {halvings} halvings down to {smallest:.3e} failed, so the path has \
+         only its start; give a smaller --first-step, and check that the model's loads or \
+         drives are what you meant"
+    )]
+    FirstStep {
+        what: &'static str,
+        first: f64,
+        smallest: f64,
+        halvings: i32,
     },
     #[error("path: {0}")]
     Input(String),
@@ -435,17 +472,15 @@ fn follow_into(
         dmu0 *= 0.5;
         halvings += 1;
         if halvings > MAX_HALVINGS {
+            // not `Stalled`: its worst residual would be that of the untouched start
+            // (λ = 0, residual 0), which says nothing about why the step failed
+            s.clone_from(&start);
             cx.place(s, 0.0);
-            let _ = cx.eval(s, 0.0, false);
-            let (dof, residual) = statics::worst_dof(model, &cx.sys.r);
-            return Err(PathError::Stalled {
+            return Err(PathError::FirstStep {
                 what,
-                mu: 0.0,
-                ds: dmu0,
-                points: 1,
-                iterations: res.newton_iterations,
-                residual,
-                dof,
+                first: opts.first_step.min(opts.max_param),
+                smallest: dmu0 * 2.0,
+                halvings: MAX_HALVINGS,
             });
         }
     }

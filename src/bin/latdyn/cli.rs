@@ -134,8 +134,9 @@ pub(crate) struct PathArgs {
     /// most path points (1 to 100000)
     #[arg(long, default_value_t = 2000, value_parser = parse_max_points)]
     pub(crate) max_points: usize,
-    /// first increment of λ (default: λ_max/50, or 0.02 without a bound); later
-    /// increments follow from the arc length, adapted to the Newton iteration counts
+    /// first increment of λ (default: λ_max/50, at most 0.02 for load control and
+    /// t_end/50 for drivers); later increments follow from the arc length, adapted to the
+    /// Newton iteration counts
     #[arg(long, value_name = "DLAMBDA", value_parser = parse_positive)]
     pub(crate) first_step: Option<f64>,
 }
@@ -191,7 +192,13 @@ impl PathArgs {
             Control::Load => f64::INFINITY,
             Control::Drivers => m.solver.t_end,
         });
-        let mut o = PathOptions::new(control, max_param);
+        // the first step: 2 % of λ_max, but at most 2 % of the load factor's scale (the
+        // loads as written) or of the drivers' stroke (t_end): see `with_scale`
+        let scale = match control {
+            Control::Load => 1.0,
+            Control::Drivers => m.solver.t_end,
+        };
+        let mut o = PathOptions::with_scale(control, max_param, scale);
         if let Some(f) = self.first_step {
             o.first_step = f;
         }

@@ -4,7 +4,8 @@
 //! script can trust (README "Exit codes"): 0 success; 2 model, input or usage error
 //! (clap's usage errors use 2 as well), an output path refused before the run included;
 //! 3 finished, but the run or some variant failed; 4 interrupted (SIGINT, SIGTERM,
-//! SIGHUP), the output file left valid and marked interrupted; 5 the output could not be
+//! SIGHUP), the output file left valid and marked interrupted (a sweep stopped while
+//! compiling its variants writes nothing and leaves the path as it was); 5 the output could not be
 //! written mid-run (the last valid flush is kept); 70 internal error (a panic: a bug).
 
 mod backend;

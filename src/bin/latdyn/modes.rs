@@ -32,9 +32,11 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     } else {
         latdyn::joint::State::new(&m)
     };
-    let md = latdyn::solver::modes::lowest_modes(&m, &state, args.count)
+    let mut md = latdyn::solver::modes::lowest_modes(&m, &state, args.count)
         .with_context(|| format!("{}: modes", m.path))?;
     let count = args.count.min(md.frequencies_hz.len());
+    md.warnings
+        .extend(fewer_modes(args.count, md.frequencies_hz.len(), m.n_eq, ""));
     let f = &md.frequencies_hz[..count];
     for w in &md.warnings {
         eprintln!("warning: {w}");
@@ -88,6 +90,27 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     }
 }
 
+/// The warning when `--count` asks for more modes than the analysis has (`have`): the
+/// model has fewer free coordinates than that, or some of them carry no mass (massless
+/// directions are condensed out, see `solver::modes`), and only `have` are reported.
+fn fewer_modes(count: usize, have: usize, free_dofs: usize, frame: &str) -> Option<String> {
+    (count > have).then(|| {
+        let why = if have < free_dofs {
+            format!(
+                "{free_dofs} free coordinates, {} of them massless directions without a \
+                 mode of their own",
+                free_dofs - have
+            )
+        } else {
+            format!("{free_dofs} free coordinates")
+        };
+        format!(
+            "--count {count}: the model has only {have} modes{frame} ({why}); all {have} are \
+             reported"
+        )
+    })
+}
+
 /// Modes of a model with a hub at constant speed: about the steady rotating state, in
 /// the rotating frame.
 pub(crate) fn rotating_modes(
@@ -99,7 +122,13 @@ pub(crate) fn rotating_modes(
         .with_context(|| format!("{}: rotating-frame modes", m.path))?;
     let count = args.count.min(rm.frequencies_hz.len());
     let f = &rm.frequencies_hz[..count];
-    let warnings: Vec<String> = rm.steady_warning().into_iter().collect();
+    let mut warnings: Vec<String> = rm.steady_warning().into_iter().collect();
+    warnings.extend(fewer_modes(
+        args.count,
+        rm.frequencies_hz.len(),
+        m.n_eq,
+        " in the rotating frame",
+    ));
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
@@ -196,6 +225,13 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
         steps.push(rm);
     }
     let branches = rotating::track_branches(&steps, args.count);
+    // the fewest modes of any value bound what is followed and sorted
+    if let Some(have) = steps.iter().map(|s| s.frequencies_hz.len()).min() {
+        if let Some(w) = fewer_modes(args.count, have, free_dofs, " in the rotating frame") {
+            eprintln!("warning: {}: {w}", args.model.model.display());
+            warnings.push(w);
+        }
+    }
     let speeds: Vec<f64> = steps.iter().map(|s| s.omega).collect();
     if args.model.json {
         let list: Vec<serde_json::Value> = branches

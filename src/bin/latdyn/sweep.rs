@@ -123,6 +123,17 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     if args.path.any_option() {
         bail!("sweep: --control, --lambda-max, --until, --limit-points, --max-length, --max-points and --first-step need --path");
     }
+    // The signal handler first, before the output is claimed and the variants compiled:
+    // a large campaign spends seconds in its preparation, and a signal there killed the
+    // process, leaving no summary and a stale lock file. The preparation checks the flag
+    // between variants (see `interrupted_in_preparation`). `--plan` writes nothing and
+    // keeps the default behaviour (a signal ends it at once).
+    let stop = if args.plan {
+        std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false))
+    } else {
+        stop_flag()
+    };
+    let t_prepare = std::time::Instant::now();
     // `origin` names a variant that breaks the model by its CSV line or grid point
     let (variants, origin) = ensemble::variants_with_origin(
         &args.model.model,
@@ -231,7 +242,13 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     };
     let (prepared, resume) = match (&args.resume, target.take()) {
         (Some(path), Some(t)) => {
-            let r = latdyn::campaign::resume(t, &c, &stage, &origin).map_err(|e| anyhow!("{e}"))?;
+            let r = match latdyn::campaign::resume_until(t, &c, &stage, &origin, &stop) {
+                Ok(r) => r,
+                Err(latdyn::campaign::MergeError::Interrupted(message)) => {
+                    return interrupted_in_preparation(args, &c, &stage, t_prepare, message)
+                }
+                Err(e) => return Err(anyhow!("{e}")),
+            };
             eprintln!(
                 "sweep --resume {}: {} variant(s) to run (not completed) of {} in the file",
                 path.display(),
@@ -240,15 +257,30 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             );
             (r.prepared, Some((r.writer, r.rows)))
         }
-        (_, t) => {
-            target = t;
-            (
-                ensemble::prepare(&c).map_err(|e| origin.name(e, &c.variants))?,
-                None,
-            )
-        }
+        (_, t) => match ensemble::prepare_until(&c, &stop) {
+            Ok(p) => {
+                target = t;
+                (p, None)
+            }
+            Err(e @ ensemble::EnsembleError::Interrupted { .. }) => {
+                // nothing was written yet: release the claim (and its lock file) and
+                // leave the path as it was
+                drop(t);
+                let message = format!(
+                    "{e}; no variant ran{}",
+                    c.output
+                        .as_ref()
+                        .map(|p| format!(
+                            " and {} was not written (a file already there is left as it was)",
+                            p.display()
+                        ))
+                        .unwrap_or_default()
+                );
+                return interrupted_in_preparation(args, &c, &stage, t_prepare, message);
+            }
+            Err(e) => return Err(origin.name(e, &c.variants).into()),
+        },
     };
-    let stop = stop_flag();
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(prepared.models.len() as u64);
         b.set_style(
@@ -524,6 +556,46 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         ));
     }
     Ok(())
+}
+
+/// A sweep stopped by a signal while its variants were being compiled (before any
+/// variant ran, see `ensemble::prepare_until`): the output path is left as it was (no
+/// file is written: a file marked interrupted would need every variant compiled, the work
+/// the signal stopped; `--resume`'s file is not touched), its lock is released, the
+/// `--json` summary says `"status": "interrupted"` with no variants, and the exit code is
+/// [`EXIT_INTERRUPTED`] as for a sweep interrupted while running.
+fn interrupted_in_preparation(
+    args: &SweepArgs,
+    c: &latdyn::ensemble::Campaign,
+    stage: &latdyn::ensemble::Stage,
+    t_prepare: std::time::Instant,
+    message: String,
+) -> anyhow::Result<()> {
+    if args.model.json {
+        let (k, n) = c.shard.unwrap_or((1, 1));
+        let in_shard = (0..c.variants.len()).filter(|i| i % n == k - 1).count();
+        let mut v = serde_json::json!({
+            "status": "interrupted",
+            "message": message,
+            "failed_variants": 0,
+            "variants": [],
+            "wall_s": t_prepare.elapsed().as_secs_f64(),
+            "backend": stage.backend,
+            "precision": stage.precision,
+            "adapter": stage.adapter,
+            "threads": c.threads,
+            "batch": latdyn::ensemble::batch_size(c.batch, in_shard, c.threads),
+            "element_stage_calls": 0,
+            "requests_per_call": 0.0,
+        });
+        if args.verify.is_some() {
+            v["verification"] = serde_json::json!({
+                "skipped": "the campaign did not finish (interrupted or output failed)"
+            });
+        }
+        emit(&format!("{v}\n"))?;
+    }
+    Err(fail(EXIT_INTERRUPTED, message))
 }
 
 /// Fraction of t_end a `sweep --plan` probe runs.
