@@ -753,24 +753,32 @@ pub fn largest_deformation_angle(model: &Model, s: &State) -> Option<Deformation
 /// naming the element, the angle, the estimated error and the fix; `None` otherwise.
 /// Statics adds it to its report; the dynamics may call it at output samples.
 pub fn deformation_angle_warning(model: &Model, s: &State) -> Option<String> {
-    let d = largest_deformation_angle(model, s)?;
-    // a NaN angle is not warned here: the caller's own check reports a state that blew up
-    if d.angle.is_nan() || d.angle <= DEFORMATION_ANGLE_WARN {
-        return None;
+    largest_deformation_angle(model, s)?.warning(None)
+}
+
+impl DeformationAngle {
+    /// The warning for this angle when it exceeds [`DEFORMATION_ANGLE_WARN`] (`at`: the
+    /// time of the run's sample it was seen at). A NaN angle is not warned here: the
+    /// caller's own check reports a state that blew up.
+    pub fn warning(&self, at: Option<f64>) -> Option<String> {
+        if self.angle.is_nan() || self.angle <= DEFORMATION_ANGLE_WARN {
+            return None;
+        }
+        Some(format!(
+            "large deformation per element: {}element {} of beam `{}` ({} elements) has a \
+             node frame turned {:.3} rad ({:.1}°) from its chord frame; the element measures \
+             such angles by their sines, so its forces are off by about {:.1} % (2θ²/3; 1 % \
+             at {DEFORMATION_ANGLE_WARN} rad). Use more elements on this beam (halving the \
+             element length quarters the error)",
+            at.map_or(String::new(), |t| format!("at t = {t:.4} s ")),
+            self.index_in_beam,
+            self.beam,
+            self.beam_elements,
+            self.angle,
+            self.angle.to_degrees(),
+            100.0 * self.force_error(),
+        ))
     }
-    Some(format!(
-        "large deformation per element: element {} of beam `{}` ({} elements) has a node \
-         frame turned {:.3} rad ({:.1}°) from its chord frame; the element measures such \
-         angles by their sines, so its forces are off by about {:.1} % (2θ²/3; 1 % at \
-         {DEFORMATION_ANGLE_WARN} rad). Use more elements on this beam (halving the element \
-         length quarters the error)",
-        d.index_in_beam,
-        d.beam,
-        d.beam_elements,
-        d.angle,
-        d.angle.to_degrees(),
-        100.0 * d.force_error(),
-    ))
 }
 
 /// Scale a Newton increment so no angle changes by more than `max_angle` radians: full

@@ -2801,22 +2801,8 @@ async fn run_fixed(
         }
     }
     let mut stats = integ.run_stats();
-    if let Some((d, t)) =
-        deformed.filter(|(d, _)| d.angle > crate::assembly::DEFORMATION_ANGLE_WARN)
-    {
-        stats.notes.push(format!(
-            "large deformation per element: at t = {t:.4} s element {} of beam `{}` ({} \
-             elements) has a node frame turned {:.3} rad ({:.1}°) from its chord frame; the \
-             element measures such angles by their sines, so its forces are off by about \
-             {:.1} % (2θ²/3; 1 % at {} rad). Use more elements on this beam",
-            d.index_in_beam,
-            d.beam,
-            d.beam_elements,
-            d.angle,
-            d.angle.to_degrees(),
-            100.0 * d.force_error(),
-            crate::assembly::DEFORMATION_ANGLE_WARN,
-        ));
+    if let Some(w) = deformed.and_then(|(d, t)| d.warning(Some(t))) {
+        stats.notes.push(w);
     }
     if sizes {
         (stats.matrix_nnz, stats.factor_nnz) = integ.sys.factor_size();
