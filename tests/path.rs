@@ -541,3 +541,50 @@ fn a_path_whose_first_step_never_converges_says_so_and_suggests_first_step() {
     assert_eq!(v["points"], 1);
     assert!(err.contains(msg), "{err}");
 }
+
+#[test]
+fn path_warns_at_its_most_deformed_point_not_only_its_last() {
+    // The tip is turned 0.8 rad and back: with 2 elements the tip element's node frame
+    // turns 0.61 rad from its chord at t ≈ 0.47 (beyond the element's small-deformation
+    // range), and the path ends undeformed, where the check used to look only.
+    let path = format!(
+        "{}/tests/models/bent_and_released.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let m = latdyn::model::load(std::path::Path::new(&path), &[]).unwrap();
+    let r = path::follow(&m, &PathOptions::new(Control::Drivers, 1.0));
+    assert!(r.error.is_none(), "{:?}", r.error.map(|e| e.to_string()));
+    let (k, lambda, d) = r.largest_deformation.clone().expect("a deformation angle");
+    assert!(
+        k > 0 && k + 1 < r.lambda.len(),
+        "point {k} of {}",
+        r.lambda.len()
+    );
+    assert!(
+        (lambda - 0.5).abs() < 0.1 && d.angle > 0.5,
+        "{lambda} {d:?}"
+    );
+    let last = latdyn::assembly::largest_deformation_angle(&m, &r.state).unwrap();
+    assert!(last.angle < 1e-6, "{last:?}");
+
+    let out = bin()
+        .args(["statics", "--path", &path, "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let w = v["warnings"].as_array().unwrap();
+    assert_eq!(w.len(), 1, "{v}");
+    let w = w[0].as_str().unwrap();
+    for part in [
+        &format!("at path point {k} of {}", r.lambda.len()),
+        "large deformation per element",
+        &format!("{:.3} rad", d.angle),
+    ] {
+        assert!(w.contains(part), "`{part}` not in: {w}");
+    }
+}

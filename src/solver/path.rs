@@ -217,6 +217,9 @@ pub struct PathResult {
     pub locks: Vec<(usize, usize)>,
     pub error: Option<PathError>,
     pub state: State,
+    /// the most deformed element over the path's points: (point index, its λ, the angle)
+    /// (see [`crate::assembly::largest_deformation_angle`])
+    pub largest_deformation: Option<(usize, f64, crate::assembly::DeformationAngle)>,
 }
 
 /// Newton iterations a step aims at: the arc length grows after easier steps and shrinks
@@ -354,6 +357,7 @@ pub fn follow(model: &Model, opts: &PathOptions) -> PathResult {
         locks: Vec::new(),
         error: None,
         state: s.clone(),
+        largest_deformation: None,
     };
     if let Err(e) = follow_into(model, opts, &mut s, &mut res) {
         res.stopped_by = "error";
@@ -441,6 +445,16 @@ fn follow_into(
         res.sensors.push(vals);
         res.iterations.push(it);
         res.arc.push(arc);
+        // a state the path passes through can be more deformed than its end (a snap-back)
+        if let Some(d) = crate::assembly::largest_deformation_angle(cx.model, s) {
+            let worse = match &res.largest_deformation {
+                None => true,
+                Some((_, _, w)) => d.angle.is_nan() || d.angle > w.angle,
+            };
+            if worse {
+                res.largest_deformation = Some((res.lambda.len() - 1, mu, d));
+            }
+        }
     };
     push(&mut cx, s, res, mu, 0, 0.0);
     let mut prev_sign = det_sign(&mut cx, s, mu);

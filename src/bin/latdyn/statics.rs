@@ -73,17 +73,22 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let r = path::follow(&m, &opts);
     let wall = t0.elapsed().as_secs_f64();
-    // the small-deformation check of plain statics, at the path's last point only (the
-    // path keeps no other state; an element is usually most deformed at the end of a
-    // monotonic path, not always after a snap-back)
-    let warnings: Vec<String> = if r.error.is_none() && !r.lambda.is_empty() {
-        latdyn::assembly::deformation_angle_warning(&m, &r.state)
-            .map(|w| format!("at the path's last point: {w}"))
-            .into_iter()
-            .collect()
-    } else {
-        Vec::new()
-    };
+    // the small-deformation check of plain statics, at the most deformed of the path's
+    // points (after a snap-back that need not be the last one); a failed path is checked
+    // over the points it reached
+    let warnings: Vec<String> = r
+        .largest_deformation
+        .as_ref()
+        .and_then(|(k, lambda, d)| {
+            d.warning(None).map(|w| {
+                format!(
+                    "at path point {k} of {} (λ = {lambda:.6e}): {w}",
+                    r.lambda.len()
+                )
+            })
+        })
+        .into_iter()
+        .collect();
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
