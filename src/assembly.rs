@@ -708,14 +708,6 @@ pub struct DeformationAngle {
 /// 8 % and 0.41 %.
 pub const DEFORMATION_ANGLE_WARN: f64 = 0.1225;
 
-impl DeformationAngle {
-    /// Leading-order relative error of the element's forces at this angle, 2θ²/3 (see
-    /// [`DEFORMATION_ANGLE_WARN`]).
-    pub fn force_error(&self) -> f64 {
-        2.0 * self.angle * self.angle / 3.0
-    }
-}
-
 /// The element whose node frame is rotated furthest from its convected frame at `s`, and
 /// that angle (the deformation angle φ = sin θ as an angle, [`element::deformation_rotation_angles`]);
 /// `None` for a model without elements.
@@ -757,6 +749,19 @@ pub fn deformation_angle_warning(model: &Model, s: &State) -> Option<String> {
 }
 
 impl DeformationAngle {
+    /// Leading-order relative error of the element's forces at this angle, 2θ²/3 (see
+    /// [`DEFORMATION_ANGLE_WARN`]).
+    pub fn force_error(&self) -> f64 {
+        2.0 * self.angle * self.angle / 3.0
+    }
+
+    /// Whether this angle replaces `worst` as the largest seen over several states (the
+    /// samples of a run, the points of a path): a NaN angle never does, so a state that
+    /// blew up, reported by its caller's own check, cannot hide a real one seen before.
+    pub fn exceeds(&self, worst: Option<&DeformationAngle>) -> bool {
+        !self.angle.is_nan() && worst.is_none_or(|w| self.angle > w.angle)
+    }
+
     /// The warning for this angle when it exceeds [`DEFORMATION_ANGLE_WARN`] (`at`: the
     /// time of the run's sample it was seen at). A NaN angle is not warned here: the
     /// caller's own check reports a state that blew up.

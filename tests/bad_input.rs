@@ -181,6 +181,14 @@ fn temp(name: &str, text: &str) -> PathBuf {
     p
 }
 
+/// Success, and the `--json` result object.
+fn json_ok(args: &[&str]) -> serde_json::Value {
+    let out = latdyn(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{args:?}: {err}");
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 /// Exit code 2 and stderr containing `part`; returns stderr.
 fn usage_error(args: &[&str], part: &str) -> String {
     let out = latdyn(args);
@@ -548,7 +556,7 @@ fn a_variant_that_breaks_the_model_is_named_by_its_csv_line_or_grid_point() {
 
     // a good table still runs
     let good = temp("good_rows.csv", "theta0,m\n0.1,1\n0.2,2\n0.3,3\n");
-    let out = latdyn(&[
+    let v = json_ok(&[
         "sweep",
         m,
         "--variants",
@@ -557,9 +565,6 @@ fn a_variant_that_breaks_the_model_is_named_by_its_csv_line_or_grid_point() {
         "t_end=0.01",
         "--json",
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["variants"].as_array().map(Vec::len), Some(3), "{v}");
     assert_eq!(v["status"], "complete", "{v}");
     assert_eq!(v["failed_variants"], 0, "{v}");
@@ -606,7 +611,7 @@ fn a_quoted_variants_field_may_hold_a_comma_and_a_doubled_quote_and_is_then_judg
         "quoted_ok.csv",
         "\u{feff}\"theta0\", \"m\"\r\n\" 0.1 \",\"1\"\r\n0.2 , \"2\"\r\n",
     );
-    let out = latdyn(&[
+    let v = json_ok(&[
         "sweep",
         m,
         "--variants",
@@ -615,9 +620,6 @@ fn a_quoted_variants_field_may_hold_a_comma_and_a_doubled_quote_and_is_then_judg
         "t_end=0.01",
         "--json",
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let params: Vec<(f64, f64)> = v["variants"]
         .as_array()
         .unwrap()

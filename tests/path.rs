@@ -567,16 +567,7 @@ fn path_warns_at_its_most_deformed_point_not_only_its_last() {
     let last = latdyn::assembly::largest_deformation_angle(&m, &r.state).unwrap();
     assert!(last.angle < 1e-6, "{last:?}");
 
-    let out = bin()
-        .args(["statics", "--path", &path, "--json"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = latdyn_json(&["statics", "--path", &path, "--json"]);
     let w = v["warnings"].as_array().unwrap();
     assert_eq!(w.len(), 1, "{v}");
     let w = w[0].as_str().unwrap();

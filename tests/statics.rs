@@ -4,18 +4,12 @@ mod common;
 use common::*;
 use latdyn::solver::solve_statics;
 
-const PROPS: &str = r#"EA = 1.0e7
-EIy = 100.0
-EIz = 100.0
-GJ = 80.0
-rhoA = 1.0"#;
-
 #[test]
 fn cantilever_tip_load_small_deflection_matches_pl3_over_3ei() {
     // Hermite cubics are exact for a tip-loaded cantilever, so the only error is the
     // geometric nonlinearity, O((PL²/EI)²) = 1e-8 relative at PL²/EI = 1e-4.
     let p = 1e-2;
-    let m = straight_beam("clamped", 4, PROPS, [0.0, 0.0, p], [0.0; 3], "");
+    let m = straight_beam("clamped", 4, BEAM_PROPS, [0.0, 0.0, p], [0.0; 3], "");
     let sol = solve_statics(&m).unwrap();
     let tip = sensor(&m, &sol.sensors, "tip");
     let (ei, l) = (100.0, 1.0);
@@ -36,7 +30,14 @@ fn cantilever_tip_load_small_deflection_matches_pl3_over_3ei() {
 fn axial_and_torsion_stiffness_are_exactly_ea_over_l_and_gj_over_l() {
     // Linear element fields reproduce uniform stretch and twist exactly; the axial
     // strain is 1e-7, so the length change is resolved to round-off.
-    let m = straight_beam("clamped", 3, PROPS, [1.0, 0.0, 0.0], [1e-3, 0.0, 0.0], "");
+    let m = straight_beam(
+        "clamped",
+        3,
+        BEAM_PROPS,
+        [1.0, 0.0, 0.0],
+        [1e-3, 0.0, 0.0],
+        "",
+    );
     let sol = solve_statics(&m).unwrap();
     let tip = sensor(&m, &sol.sensors, "tip");
     assert!(rel(tip[0], 1.0 / 1.0e7) < 1e-9, "u = {}", tip[0]);
@@ -55,7 +56,14 @@ fn large_deflection_cantilever_matches_mattiasson_elastica_table() {
     // 20 elements: discretisation error O(h²) measured below 2e-4 of L at PL²/EI = 10
     // (see the convergence test); the table itself has 5 digits. Tolerance 1e-3 L.
     for (load, u, w, th) in ELASTICA {
-        let m = straight_beam("clamped", 20, PROPS, [0.0, 0.0, load * 100.0], [0.0; 3], "");
+        let m = straight_beam(
+            "clamped",
+            20,
+            BEAM_PROPS,
+            [0.0, 0.0, load * 100.0],
+            [0.0; 3],
+            "",
+        );
         let sol = solve_statics(&m).unwrap();
         let tip = sensor(&m, &sol.sensors, "tip");
         let (gu, gw, gth) = (-tip[0], tip[2], -tip[4]);
@@ -69,7 +77,7 @@ fn large_deflection_cantilever_matches_mattiasson_elastica_table() {
 fn elastica_error_falls_quadratically_under_mesh_refinement() {
     let mut errs = Vec::new();
     for n in [5, 10, 20] {
-        let m = straight_beam("clamped", n, PROPS, [0.0, 0.0, 1000.0], [0.0; 3], "");
+        let m = straight_beam("clamped", n, BEAM_PROPS, [0.0, 0.0, 1000.0], [0.0; 3], "");
         let sol = solve_statics(&m).unwrap();
         let tip = sensor(&m, &sol.sensors, "tip");
         let e = (tip[2] - 0.81061).abs().max((-tip[0] - 0.55500).abs());
@@ -87,7 +95,7 @@ fn end_moment_two_pi_ei_over_l_rolls_the_cantilever_into_a_full_circle() {
     // beam along x, M>0 bends towards −z: tip at (0, 0, −2L/π), turned π.
     let ei = 100.0;
     let pi = std::f64::consts::PI;
-    let half = straight_beam("clamped", 32, PROPS, [0.0; 3], [0.0, pi * ei, 0.0], "");
+    let half = straight_beam("clamped", 32, BEAM_PROPS, [0.0; 3], [0.0, pi * ei, 0.0], "");
     let sol = solve_statics(&half).unwrap();
     let x = sensor(&half, &sol.sensors, "tipx");
     // measured (−0.0016, 0, −0.63585) against (0, 0, −0.63662) with 32 elements
@@ -100,7 +108,14 @@ fn end_moment_two_pi_ei_over_l_rolls_the_cantilever_into_a_full_circle() {
     assert!((tip[4].abs() - pi).abs() < 0.01, "tip rotation {}", tip[4]);
 
     let gap_and_rot = |n: usize| {
-        let full = straight_beam("clamped", n, PROPS, [0.0; 3], [0.0, 2.0 * pi * ei, 0.0], "");
+        let full = straight_beam(
+            "clamped",
+            n,
+            BEAM_PROPS,
+            [0.0; 3],
+            [0.0, 2.0 * pi * ei, 0.0],
+            "",
+        );
         let sol = solve_statics(&full).unwrap();
         let x = sensor(&full, &sol.sensors, "tipx");
         let tip = sensor(&full, &sol.sensors, "tip");
@@ -202,7 +217,7 @@ beam = "beam"
 at = 0.25
 "#;
     let (f, c) = ([3e-3, 1e-2, -2e-2], [1e-3, 2e-3, -3e-3]);
-    let m = straight_beam("clamped", 4, PROPS, f, c, extra);
+    let m = straight_beam("clamped", 4, BEAM_PROPS, f, c, extra);
     let sol = solve_statics(&m).unwrap();
     for (name, x) in [("root", 0.0), ("quarter", 0.25)] {
         let s = sensor(&m, &sol.sensors, name);

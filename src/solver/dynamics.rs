@@ -2711,7 +2711,7 @@ async fn run_fixed(
         integ: &Integrator,
     ) {
         if let Some(d) = crate::assembly::largest_deformation_angle(integ.model, &integ.s) {
-            if !d.angle.is_nan() && deformed.as_ref().is_none_or(|(w, _)| d.angle > w.angle) {
+            if d.exceeds(deformed.as_ref().map(|(w, _)| w)) {
                 *deformed = Some((d, integ.s.t));
             }
         }

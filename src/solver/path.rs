@@ -447,11 +447,7 @@ fn follow_into(
         res.arc.push(arc);
         // a state the path passes through can be more deformed than its end (a snap-back)
         if let Some(d) = crate::assembly::largest_deformation_angle(cx.model, s) {
-            let worse = match &res.largest_deformation {
-                None => true,
-                Some((_, _, w)) => d.angle.is_nan() || d.angle > w.angle,
-            };
-            if worse {
+            if d.exceeds(res.largest_deformation.as_ref().map(|(_, _, w)| w)) {
                 res.largest_deformation = Some((res.lambda.len() - 1, mu, d));
             }
         }

@@ -104,6 +104,26 @@ pub fn latdyn(args: &[&str]) -> std::process::Output {
         .expect("run latdyn")
 }
 
+/// [`latdyn`] that must succeed (its stderr in the failure message), its stdout parsed
+/// as the `--json` result object.
+pub fn latdyn_json(args: &[&str]) -> serde_json::Value {
+    let out = latdyn(args);
+    assert!(
+        out.status.success(),
+        "latdyn {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("--json prints one JSON object")
+}
+
+/// Section of the [`straight_beam`] tests: EI = 100 in both planes, GJ = 80, EA = 1e7,
+/// ρA = 1 (a 1 m beam's end moment of 100 N·m bends it by 1 rad).
+pub const BEAM_PROPS: &str = r#"EA = 1.0e7
+EIy = 100.0
+EIz = 100.0
+GJ = 80.0
+rhoA = 1.0"#;
+
 pub fn h5py_available() -> bool {
     let ok = std::process::Command::new("python3")
         .args(["-c", "import h5py"])
