@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use latdyn::assembly::{deformation_angle_warning, largest_deformation_angle};
-use latdyn::solver::solve_statics;
+use latdyn::solver::{check_statics_mesh, solve_statics, MESH_ERROR_WARN};
 
 #[test]
 fn section_sensor_reads_the_requested_station_not_the_nearest_end_or_midpoint() {
@@ -94,12 +94,12 @@ fn shipped_scenes_statics_and_their_deformation_angles() {
             sol.report.warnings
         );
     }
-    // bend45 at its shipped 8 elements and P = 600 does warn: the root element's node
-    // frame turns 0.186 rad from its chord (2θ²/3 = 2.3 % on its forces; the tip is 0.27
-    // from the converged z, 0.5 %: the other elements deform less). Measured, not hidden
-    // by a larger threshold; 16 elements halve the angle and do not warn.
+    // bend45 at its shipped 8 elements and P = 600 leaves the range: the root element's
+    // node frame turns 0.186 rad from its chord (2θ²/3 = 2.3 % on its forces). What that
+    // costs the reported numbers is measured (next test): 0.4 % at the tip, 0.56 % on the
+    // strain energy, so the bound's warning is replaced by that measurement and dropped.
     let m = shipped("bend45.toml", &[]);
-    let sol = solve_statics(&m).unwrap();
+    let mut sol = solve_statics(&m).unwrap();
     let d = largest_deformation_angle(&m, &sol.state).unwrap();
     eprintln!(
         "bend45.toml: largest deformation angle {:.4} rad at {d:?}",
@@ -108,9 +108,125 @@ fn shipped_scenes_statics_and_their_deformation_angles() {
     assert!((d.angle - 0.186).abs() < 2e-3, "{d:?}");
     assert_eq!((d.beam.as_str(), d.index_in_beam), ("bend", 0));
     assert_eq!(sol.report.warnings.len(), 1);
+    let check = check_statics_mesh(&m, &mut sol, || {
+        Ok(shipped("bend45.toml", &[("elements", 16.0)]))
+    })
+    .expect("measured");
+    assert!(check.estimate < MESH_ERROR_WARN, "{check:?}");
+    assert!(sol.report.warnings.is_empty(), "{:?}", sol.report.warnings);
     let m = shipped("bend45.toml", &[("elements", 16.0)]);
     let sol = solve_statics(&m).unwrap();
     assert!(sol.report.warnings.is_empty(), "{:?}", sol.report.warnings);
+}
+
+/// Largest error of bend45 with `n` elements against 256 elements, over the tip's
+/// components (relative to the tip's largest displacement component) and the strain
+/// energy: (tip, strain energy).
+fn bend45_true_error(n: usize, fine: &latdyn::solver::StaticSolution) -> (f64, f64) {
+    let sol = solve_statics(&shipped("bend45.toml", &[("elements", n as f64)])).unwrap();
+    let m = shipped("bend45.toml", &[]);
+    let (tip, tip_ref) = (
+        sensor(&m, &sol.sensors, "tip"),
+        sensor(&m, &fine.sensors, "tip"),
+    );
+    let x0 = [
+        100.0 * (0.25 * std::f64::consts::PI).sin(),
+        100.0 - 100.0 * (0.25 * std::f64::consts::PI).cos(),
+        0.0,
+    ];
+    let change = (0..3)
+        .map(|c| (tip_ref[c] - x0[c]).abs())
+        .fold(0.0, f64::max);
+    let tip_err = (0..3)
+        .map(|c| (tip[c] - tip_ref[c]).abs())
+        .fold(0.0, f64::max)
+        / change;
+    (tip_err, rel(sol.strain_energy, fine.strain_energy))
+}
+
+#[test]
+fn statics_measures_the_mesh_error_of_a_large_deformation_and_warns_only_above_one_percent() {
+    // bend45 (Bathe-Bolourchi, P = 600) with 2, 4 and 8 elements leaves the element's
+    // small-deformation range at every mesh (root element 0.59, 0.33, 0.19 rad). The mesh
+    // check solves again with twice the elements and takes Richardson's second-order
+    // estimate; against 256 elements (whose own error is 1/64 of that of 32, below 1e-4
+    // here) it must be within 15 % of the true error of the tip and the strain energy:
+    // the leading term is second order (the sine measure's 2θ²/3, θ ∝ element length),
+    // its next term shows at the coarsest mesh (2 elements: 8.98 % estimated, 9.6 % true).
+    // The warning stays exactly where the true error is above 1 %.
+    let fine = solve_statics(&shipped("bend45.toml", &[("elements", 256.0)])).unwrap();
+    for n in [2usize, 4, 8] {
+        let m = shipped("bend45.toml", &[("elements", n as f64)]);
+        let mut sol = solve_statics(&m).unwrap();
+        assert_eq!(
+            sol.report.warnings.len(),
+            1,
+            "{n}: {:?}",
+            sol.report.warnings
+        );
+        let check = check_statics_mesh(&m, &mut sol, || {
+            Ok(shipped("bend45.toml", &[("elements", (2 * n) as f64)]))
+        })
+        .expect("measured");
+        let (tip, energy) = bend45_true_error(n, &fine);
+        let est_tip = check.by_sensor[m.sensor_index("tip").unwrap()];
+        eprintln!(
+            "{n} elements: tip {est_tip:.3e} (true {tip:.3e}), strain energy {:.3e} (true {energy:.3e})",
+            check.strain_energy
+        );
+        for (what, est, truth) in [
+            ("tip", est_tip, tip),
+            ("strain energy", check.strain_energy, energy),
+        ] {
+            assert!(
+                (est / truth - 1.0).abs() < 0.15,
+                "{n} elements, {what}: estimate {est:.3e}, true {truth:.3e}"
+            );
+        }
+        assert_eq!(check.elements, (n, 2 * n));
+        let truth = tip.max(energy);
+        assert_eq!(
+            sol.report.warnings.len(),
+            usize::from(truth > 1e-2),
+            "{n}: {:?}",
+            sol.report.warnings
+        );
+        if truth > 1e-2 {
+            let w = &sol.report.warnings[0];
+            for part in [
+                "large deformation per element",
+                "measured by solving again with twice the elements",
+                &format!("{} on `bend`", 2 * n),
+                &format!("{:.2} %", 100.0 * check.estimate),
+            ] {
+                assert!(w.contains(part), "`{part}` not in: {w}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_mesh_check_that_cannot_run_keeps_the_bound_warning_and_says_why() {
+    // The refined model may not compile (a limit on elements) or not solve: the reported
+    // numbers are then unmeasured, and the per-element bound must stay.
+    let m = twisted(4, 100.0);
+    let mut sol = solve_statics(&m).unwrap();
+    let bound = sol.report.warnings.clone();
+    assert_eq!(bound.len(), 1);
+    let check = check_statics_mesh(&m, &mut sol, || Err("limit on elements".into()));
+    assert!(check.is_none());
+    assert_eq!(sol.report.warnings.len(), 1);
+    let w = &sol.report.warnings[0];
+    assert!(w.starts_with(&bound[0]), "{w}");
+    assert!(
+        w.contains("not measured: solving again with 8 elements failed: limit on elements"),
+        "{w}"
+    );
+    // within the range nothing is measured and nothing is said
+    let m = twisted(64, 100.0);
+    let mut sol = solve_statics(&m).unwrap();
+    assert!(check_statics_mesh(&m, &mut sol, || panic!("no check needed")).is_none());
+    assert!(sol.report.warnings.is_empty());
 }
 
 #[test]
@@ -137,6 +253,14 @@ fn statics_cli_prints_the_warning_and_lists_it_in_json() {
         .as_str()
         .unwrap()
         .contains("large deformation per element"));
+    assert!(
+        w[0].as_str()
+            .unwrap()
+            .contains("measured by solving again with twice the elements"),
+        "{v}"
+    );
+    assert!(v["mesh_error_estimate"].as_f64().unwrap() > 1e-2, "{v}");
+    assert!(v["mesh_error_by_sensor"]["tip"].as_f64().is_some(), "{v}");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("warning: models/cantilever.toml: large deformation"),
@@ -150,11 +274,45 @@ fn statics_cli_prints_the_warning_and_lists_it_in_json() {
     assert!(out.status.success(), "{out:?}");
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    assert_eq!(v["mesh_error_estimate"], serde_json::Value::Null, "{v}");
     assert!(
         out.stderr.is_empty(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+#[test]
+fn shipped_bend45_statics_reports_its_measured_mesh_error_and_no_warning() {
+    // The shipped scene at its shipped settings (issue 14: no warning there): its root
+    // element leaves the range, the measured error (0.56 %, strain energy) is reported.
+    let v = latdyn_json(&["statics", "models/bend45.toml", "--json"]);
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    let est = v["mesh_error_estimate"].as_f64().unwrap();
+    assert!(est > 1e-3 && est < 1e-2, "{v}");
+    assert_eq!(v["mesh_error_strain_energy"].as_f64(), Some(est), "{v}");
+}
+
+#[test]
+fn statics_of_every_shipped_scene_warns_nothing_at_its_shipped_settings() {
+    // Issue 14's "no warning on the shipped scenes", for `statics`: every shipped model
+    // that has a static equilibrium (the four-bar is a mechanism: an error naming its
+    // free motion) reports it without a warning.
+    for p in shipped_model_paths() {
+        let name = p.file_name().unwrap().to_str().unwrap().to_string();
+        let out = latdyn(&["statics", p.to_str().unwrap(), "--json"]);
+        if name == "fourbar.toml" {
+            assert!(!out.status.success(), "{name}: {out:?}");
+            assert!(
+                String::from_utf8_lossy(&out.stderr).contains("free motion"),
+                "{out:?}"
+            );
+            continue;
+        }
+        assert!(out.status.success(), "{name}: {out:?}");
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["warnings"], serde_json::json!([]), "{name}: {v}");
+    }
 }
 
 #[test]
