@@ -194,6 +194,67 @@ fn sigterm_mid_sweep_leaves_a_readable_file_marked_interrupted_and_exits_4() {
 }
 
 #[test]
+fn sigint_mid_path_sweep_keeps_the_points_so_far_marked_interrupted_and_exits_4() {
+    // `sweep --path` had no handler: a signal killed it while its paths were computed,
+    // before anything was written, and every path so far was lost. 400 paths of bend45
+    // on 64 elements (about 0.1 s each on one thread) are still running when the
+    // claimed output's lock file appears; the signal ends each path before its next
+    // step, and the file is written with them, marked interrupted.
+    let dir = scratch("sigint_path_sweep");
+    let path = dir.join("c.h5");
+    let lock = dir.join("c.h5.lock");
+    let child = spawn(latdyn(&[
+        "sweep",
+        "models/bend45.toml",
+        "--path",
+        "--set",
+        "elements=64",
+        "--lambda-max",
+        "5",
+        "--vary",
+        "P=500:700:400",
+        "--threads",
+        "1",
+        "--json",
+        "-o",
+        s(&path),
+    ]));
+    common::wait_until(30, "the claimed output's lock file", || lock.exists());
+    std::thread::sleep(Duration::from_millis(300));
+    signal(&child, "INT");
+    let out = finish(child, 60);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(4), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let stopped = v["interrupted"].as_u64().unwrap();
+    assert!(stopped > 0 && stopped < 400, "{stopped} of 400 interrupted");
+    let states: Vec<&str> = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["status"].as_str().unwrap())
+        .collect();
+    assert_eq!(states.len(), 400);
+    assert_eq!(
+        states[0], "completed",
+        "the first path ended before the signal"
+    );
+    assert_eq!(
+        states.iter().filter(|x| **x == "interrupted").count() as u64,
+        stopped
+    );
+    let (status, state) = rust_summary(&path);
+    assert_eq!(status, "interrupted");
+    assert!(state.contains(&2) && state.contains(&4), "{state:?}");
+    if let Some(h) = h5py_summary(&path) {
+        assert_eq!(h["status"], "interrupted");
+    }
+    assert!(!lock.exists(), "lock file removed");
+    no_temporaries(&dir);
+}
+
+#[test]
 fn sighup_stops_a_sweep_like_sigint() {
     let dir = scratch("sighup_sweep");
     let path = dir.join("c.h5");

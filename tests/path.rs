@@ -579,3 +579,55 @@ fn path_warns_at_its_most_deformed_point_not_only_its_last() {
         assert!(w.contains(part), "`{part}` not in: {w}");
     }
 }
+
+#[test]
+fn sweep_path_warns_per_variant_in_json_the_file_and_a_count_on_stderr() {
+    // The same check for every path of a sweep: until session 30 `sweep --path` reported
+    // no warning at all. peak 0.8 on 2 elements turns the tip element 0.61 rad; peak 0.1
+    // stays within the range (0.08 rad).
+    let path = format!(
+        "{}/tests/models/bent_and_released.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("sweep_path_warns");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let h5 = dir.join("c.h5");
+    let out = latdyn(&[
+        "sweep",
+        &path,
+        "--path",
+        "--vary",
+        "peak=0.1:0.8:2",
+        "--json",
+        "-o",
+        h5.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let warned: Vec<usize> = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["warnings"].as_array().unwrap().len())
+        .collect();
+    assert_eq!(warned, [0, 1], "{v}");
+    let w = v["variants"][1]["warnings"][0].as_str().unwrap();
+    assert!(
+        w.contains("large deformation per element") && w.contains("at path point"),
+        "{w}"
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("warning: 1 variant(s)") && err.contains("indices 1"),
+        "{err}"
+    );
+    let f = rust_hdf5::H5File::open(&h5).unwrap();
+    let stored = f
+        .dataset("status/warnings")
+        .unwrap()
+        .read_strings()
+        .unwrap();
+    assert_eq!(stored.len(), 2);
+    assert!(stored[0].is_empty() && stored[1] == w, "{stored:?}");
+}

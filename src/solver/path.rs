@@ -69,6 +69,9 @@ pub struct PathOptions {
     pub until: Option<Until>,
     /// end the path at its K-th limit point (the first point past it)
     pub limit_points: Option<usize>,
+    /// set from outside (a signal): the path ends before its next step, `stopped_by`
+    /// "interrupted", with the points so far
+    pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl PathOptions {
@@ -109,6 +112,7 @@ impl PathOptions {
             max_growth: 4.0,
             until: None,
             limit_points: None,
+            stop: None,
         }
     }
 }
@@ -211,7 +215,7 @@ pub struct PathResult {
     pub rejected_steps: usize,
     pub newton_iterations: usize,
     /// why the path ended: "max_param", "until", "max_length", "max_points",
-    /// "limit_points", "error"
+    /// "limit_points", "interrupted", "error"
     pub stopped_by: &'static str,
     /// hinges locked along the path: (hinge index, point index)
     pub locks: Vec<(usize, usize)>,
@@ -220,6 +224,44 @@ pub struct PathResult {
     /// the most deformed element over the path's points: (point index, its λ, the angle)
     /// (see [`crate::assembly::largest_deformation_angle`])
     pub largest_deformation: Option<(usize, f64, crate::assembly::DeformationAngle)>,
+}
+
+impl PathResult {
+    /// Whether the path was stopped from outside before it ended ([`PathOptions::stop`]).
+    pub fn interrupted(&self) -> bool {
+        self.stopped_by == "interrupted"
+    }
+
+    /// The error that ended the path, or why it stopped early; empty for a path that
+    /// ended as asked.
+    pub fn message(&self) -> String {
+        match &self.error {
+            Some(e) => e.to_string(),
+            None if self.interrupted() => {
+                "interrupted (SIGINT, SIGTERM or SIGHUP) before its end: the points so far".into()
+            }
+            None => String::new(),
+        }
+    }
+
+    /// Warnings about the path's numbers: the small-deformation check of plain statics
+    /// at the most deformed of its points (after a snap-back that need not be the last
+    /// one; a failed path is checked over the points it reached), named by its index
+    /// and λ.
+    pub fn warnings(&self) -> Vec<String> {
+        self.largest_deformation
+            .as_ref()
+            .and_then(|(k, lambda, d)| {
+                d.warning(None).map(|w| {
+                    format!(
+                        "at path point {k} of {} (λ = {lambda:.6e}): {w}",
+                        self.lambda.len()
+                    )
+                })
+            })
+            .into_iter()
+            .collect()
+    }
 }
 
 /// Newton iterations a step aims at: the arc length grows after easier steps and shrinks
@@ -527,6 +569,14 @@ fn follow_into(
     }
 
     loop {
+        if opts
+            .stop
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
+        {
+            res.stopped_by = "interrupted";
+            return Ok(());
+        }
         if res.lambda.len() >= opts.max_points {
             res.stopped_by = "max_points";
             return Ok(());
@@ -939,8 +989,15 @@ pub fn to_json(model: &Model, r: &PathResult, wall_s: f64) -> serde_json::Value 
         "newton_iterations": r.newton_iterations,
         "rejected_steps": r.rejected_steps,
         "stopped_by": r.stopped_by,
-        "status": if r.error.is_some() { "failed" } else { "completed" },
-        "message": r.error.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+        "status": if r.error.is_some() {
+            "failed"
+        } else if r.interrupted() {
+            "interrupted"
+        } else {
+            "completed"
+        },
+        "message": r.message(),
+        "warnings": r.warnings(),
         "wall_s": wall_s,
     })
 }
@@ -1000,11 +1057,13 @@ pub fn write_variant(
     let st = VariantStatus {
         state: if r.error.is_some() {
             VariantState::Failed
+        } else if r.interrupted() {
+            VariantState::Interrupted
         } else {
             VariantState::Completed
         },
-        message: r.error.as_ref().map(|e| e.to_string()).unwrap_or_default(),
-        t_fail: if r.error.is_some() {
+        message: r.message(),
+        t_fail: if r.error.is_some() || r.interrupted() {
             r.lambda.last().copied().unwrap_or(0.0)
         } else {
             f64::NAN
@@ -1012,6 +1071,7 @@ pub fn write_variant(
         steps: r.lambda.len().saturating_sub(1) as u64,
         rejected_steps: r.rejected_steps as u64,
         wall_s,
+        warnings: r.warnings().join("\n"),
         ..VariantStatus::default()
     };
     w.set_status(v, &st)

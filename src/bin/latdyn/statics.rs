@@ -4,7 +4,7 @@ use anyhow::{anyhow, bail, Context};
 use latdyn::model::Model;
 
 use crate::cli::StaticsArgs;
-use crate::{claim_optional_output, emit, fail, EXIT_FAILED, EXIT_OUTPUT};
+use crate::{claim_optional_output, emit, fail, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT};
 
 pub(crate) fn sensor_map(
     m: &Model,
@@ -87,29 +87,17 @@ pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
 pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     use latdyn::solver::path;
     let m = args.model.load()?;
-    let opts = args.path.options(&m)?;
+    let mut opts = args.path.options(&m)?;
+    // a signal ends the path before its next step; its points so far are printed and
+    // written, the file marked interrupted (exit 4), as an interrupted run's are
+    opts.stop = Some(crate::stop_flag());
     path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
     let model_file = [(args.model.model.as_path(), "the model file")];
     let target = claim_optional_output(args.output.as_deref(), &model_file)?;
     let t0 = std::time::Instant::now();
     let r = path::follow(&m, &opts);
     let wall = t0.elapsed().as_secs_f64();
-    // the small-deformation check of plain statics, at the most deformed of the path's
-    // points (after a snap-back that need not be the last one); a failed path is checked
-    // over the points it reached
-    let warnings: Vec<String> = r
-        .largest_deformation
-        .as_ref()
-        .and_then(|(k, lambda, d)| {
-            d.warning(None).map(|w| {
-                format!(
-                    "at path point {k} of {} (λ = {lambda:.6e}): {w}",
-                    r.lambda.len()
-                )
-            })
-        })
-        .into_iter()
-        .collect();
+    let warnings = r.warnings();
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
@@ -118,16 +106,16 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
         let meta = path::campaign_meta(&[&m], r.lambda.clone(), latdyn::output::command_line(), 1);
         let written = latdyn::output::CampaignWriter::create_at(t, &meta).and_then(|mut w| {
             path::write_variant(&mut w, 0, &r, wall)?;
-            w.finish("complete")
+            w.finish(if r.interrupted() {
+                "interrupted"
+            } else {
+                "complete"
+            })
         });
         out_err = written.err();
     }
     if args.model.json {
-        let mut v = path::to_json(&m, &r, wall);
-        if let Some(o) = v.as_object_mut() {
-            o.insert("warnings".into(), serde_json::json!(warnings));
-        }
-        emit(&format!("{v}\n"))?;
+        emit(&format!("{}\n", path::to_json(&m, &r, wall)))?;
     } else {
         let mut s = format!(
             "path {} ({} control): {} points, {} Newton iterations, {} rejected steps, {:.3} s; \
@@ -160,6 +148,10 @@ pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
     match &r.error {
         Some(path::PathError::Input(msg)) => bail!("{}: {msg}", m.path),
         Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
+        None if r.interrupted() => Err(fail(
+            EXIT_INTERRUPTED,
+            format!("{}: path {}", m.path, r.message()),
+        )),
         None => Ok(()),
     }
 }

@@ -392,31 +392,11 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             (None, _) => String::new(),
         }
     );
-    // per kind of warning: how many variants, which (first 20), and the first text in full
-    let mut kinds: Vec<(String, Vec<usize>, String)> = Vec::new();
-    for o in &outcomes {
-        for w in &o.warnings {
-            let kind = latdyn::frequency::warning_kind(w);
-            match kinds.iter_mut().find(|(k, _, _)| *k == kind) {
-                Some((_, idx, _)) => {
-                    if idx.last() != Some(&o.global_index) {
-                        idx.push(o.global_index)
-                    }
-                }
-                None => kinds.push((kind, vec![o.global_index], w.clone())),
-            }
-        }
-    }
-    for (kind, idx, first) in &kinds {
-        let shown: Vec<String> = idx.iter().take(20).map(|i| i.to_string()).collect();
-        eprintln!(
-            "warning: {} variant(s): {kind}: indices {}{} (variant {}: {first})",
-            idx.len(),
-            shown.join(", "),
-            if idx.len() > shown.len() { ", …" } else { "" },
-            idx[0]
-        );
-    }
+    report_warning_kinds(
+        outcomes
+            .iter()
+            .map(|o| (o.global_index, o.warnings.clone())),
+    );
     if let Some(v) = &verification {
         eprintln!("{}", v.summary());
         for w in &v.warnings {
@@ -711,6 +691,35 @@ pub(crate) fn sweep_plan(
     Ok(())
 }
 
+/// On stderr, per kind of warning: how many variants, which (first 20), and the first
+/// text in full. `warned`: (global variant index, its warnings), in campaign order.
+fn report_warning_kinds(warned: impl Iterator<Item = (usize, Vec<String>)>) {
+    let mut kinds: Vec<(String, Vec<usize>, String)> = Vec::new();
+    for (gi, warnings) in warned {
+        for w in &warnings {
+            let kind = latdyn::frequency::warning_kind(w);
+            match kinds.iter_mut().find(|(k, _, _)| *k == kind) {
+                Some((_, idx, _)) => {
+                    if idx.last() != Some(&gi) {
+                        idx.push(gi)
+                    }
+                }
+                None => kinds.push((kind, vec![gi], w.clone())),
+            }
+        }
+    }
+    for (kind, idx, first) in &kinds {
+        let shown: Vec<String> = idx.iter().take(20).map(|i| i.to_string()).collect();
+        eprintln!(
+            "warning: {} variant(s): {kind}: indices {}{} (variant {}: {first})",
+            idx.len(),
+            shown.join(", "),
+            if idx.len() > shown.len() { ", …" } else { "" },
+            idx[0]
+        );
+    }
+}
+
 /// `sweep --path`: a path per variant, in parallel; JSON per variant, optional campaign
 /// file with the point index as time and λ in `path_lambda`.
 pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
@@ -733,12 +742,17 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     }
     let mut models = Vec::with_capacity(chosen.len());
     let mut opts = Vec::with_capacity(chosen.len());
+    // a signal ends every path before its next step (those not started yet after their
+    // first); the points so far are written, the file marked interrupted (exit 4)
+    let stop = crate::stop_flag();
     for &gi in &chosen {
         let mut sets = args.model.set.clone();
         sets.extend(variants[gi].iter().cloned());
         let m = model::load(&args.model.model, &sets)
             .map_err(|e| anyhow!("{}: {e}", origin.describe(gi, &variants[gi])))?;
-        opts.push(args.path.options(&m)?);
+        let mut o = args.path.options(&m)?;
+        o.stop = Some(stop.clone());
+        opts.push(o);
         models.push(m);
     }
     let target = claim_optional_output(args.output.as_deref(), &sweep_inputs(args))?;
@@ -750,6 +764,7 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     let results = path::follow_all(&models, &opts, threads);
     let wall = t0.elapsed().as_secs_f64();
     let failed = results.iter().filter(|(r, _)| r.error.is_some()).count();
+    let interrupted = results.iter().filter(|(r, _)| r.interrupted()).count();
     let mut out_err = None;
     if let (Some(t), false) = (target, models.is_empty()) {
         let npts = results
@@ -769,7 +784,11 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
             for (v, (r, ws)) in results.iter().enumerate() {
                 path::write_variant(&mut w, v, r, *ws)?;
             }
-            w.finish("complete")
+            w.finish(if interrupted > 0 {
+                "interrupted"
+            } else {
+                "complete"
+            })
         });
         out_err = written.err();
     }
@@ -791,22 +810,40 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
         let v = serde_json::json!({
             "variants": vs,
             "failed": failed,
+            "interrupted": interrupted,
             "threads": threads,
             "wall_s": wall,
         });
         emit(&format!("{v}\n"))?;
     } else {
         eprintln!(
-            "sweep --path {}: {} variants ({} failed) on {} threads in {:.3} s",
+            "sweep --path {}: {} variants ({} failed, {} interrupted) on {} threads in {:.3} s",
             args.model.model.display(),
             results.len(),
             failed,
+            interrupted,
             threads,
             wall
         );
     }
+    report_warning_kinds(
+        results
+            .iter()
+            .zip(&chosen)
+            .map(|((r, _), &gi)| (gi, r.warnings())),
+    );
     if let Some(e) = out_err {
         return Err(fail(EXIT_OUTPUT, e.to_string()));
+    }
+    if interrupted > 0 {
+        return Err(fail(
+            EXIT_INTERRUPTED,
+            format!(
+                "sweep --path: interrupted (SIGINT, SIGTERM or SIGHUP): {interrupted} of {} \
+                 paths stopped before their end, {failed} failed; the points so far are kept",
+                results.len()
+            ),
+        ));
     }
     if failed > 0 {
         return Err(fail(
