@@ -1836,11 +1836,25 @@ impl<'m> Integrator<'m> {
 
     /// Sensor values now.
     pub fn sample(&self) -> Vec<Vec<f64>> {
-        self.model
-            .sensors
-            .iter()
-            .map(|sn| sensors::sample(self.model, &self.s, &sn.kind, &self.energies, &self.sys.gen))
-            .collect()
+        let mut out = Vec::new();
+        self.sample_into(&mut out);
+        out
+    }
+
+    /// [`Self::sample`] into buffers the caller keeps (a step end's under `--accuracy`
+    /// interpolation, every step).
+    fn sample_into(&self, out: &mut Vec<Vec<f64>>) {
+        out.resize_with(self.model.sensors.len(), Vec::new);
+        for (sn, v) in self.model.sensors.iter().zip(out.iter_mut()) {
+            sensors::sample_into(
+                self.model,
+                &self.s,
+                &sn.kind,
+                &self.energies,
+                &self.sys.gen,
+                v,
+            );
+        }
     }
 }
 
@@ -2605,6 +2619,18 @@ impl StepEnds {
         self.pts.push_back((t, locked, vals));
     }
 
+    /// [`Self::push`] of `integ`'s step end, in the buffers of the step end it replaces
+    /// (this runs every step: no allocation once four are kept).
+    fn push_step(&mut self, integ: &Integrator, locked: usize) {
+        let mut vals = if self.pts.len() == 4 {
+            self.pts.pop_front().map(|p| p.2).unwrap_or_default()
+        } else {
+            Vec::new()
+        };
+        integ.sample_into(&mut vals);
+        self.push(integ.s.t, locked, vals);
+    }
+
     /// A sample at `t` can be taken: it lies before the third of four step ends (so the
     /// cubic through them is centred on its interval where the run has steps on both
     /// sides), or the run has `done` and `t` is within its last step end.
@@ -2736,7 +2762,7 @@ async fn run_fixed(
         let locked = |integ: &Integrator| integ.s.locked.iter().filter(|l| **l).count();
         if resume.is_none() {
             // t = 0 is a step end and a sample
-            ends.push(integ.s.t, locked(&integ), integ.sample());
+            ends.push_step(&integ, locked(&integ));
             record(&integ, &mut hist, &mut balance);
             first = 1;
         }
@@ -2751,7 +2777,7 @@ async fn run_fixed(
                 failure = Some(e);
             } else {
                 balance.record(&integ);
-                ends.push(integ.s.t, locked(&integ), integ.sample());
+                ends.push_step(&integ, locked(&integ));
             }
             // a sample needs a step end on either side of it, and one beyond those; the
             // last ones (and those before a failure) take the step ends there are
