@@ -36,37 +36,44 @@ pub struct StaticSolution {
 pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsError> {
     let mut s = State::new(model);
     let report = statics::solve(model, &mut s)?;
+    let (sensors, strain_energy) = static_sensors(model, &s, 1.0);
+    Ok(StaticSolution {
+        state: s,
+        report,
+        sensors,
+        strain_energy,
+    })
+}
+
+/// Sensor values (model order) and strain energy of a static state `s` at load factor
+/// `lambda`: no kinetic energy, and at driven dofs the generalized forces the drivers
+/// supply there.
+fn static_sensors(model: &Model, s: &State, lambda: f64) -> (Vec<Vec<f64>>, f64) {
     let strain: f64 = model
         .elem_data
         .iter()
         .enumerate()
-        .map(|(ie, e)| crate::element::strain_energy(e, &crate::joint::elem_state(model, &s, ie)))
+        .map(|(ie, e)| crate::element::strain_energy(e, &crate::joint::elem_state(model, s, ie)))
         .sum();
     let en = Energies {
         kinetic: 0.0,
         strain,
         ..Energies::default()
     };
-    // generalized forces at equilibrium: at driven dofs, what the drivers supply
     let mut gen = vec![0.0; model.dofs.len()];
     Assembler::new(model).evaluate(
         model,
-        &s,
-        crate::assembly::Coeffs::statics(1.0),
+        s,
+        crate::assembly::Coeffs::statics(lambda),
         &mut gen,
         None,
     );
     let vals = model
         .sensors
         .iter()
-        .map(|sn| sensors::sample(model, &s, &sn.kind, &en, &gen))
+        .map(|sn| sensors::sample(model, s, &sn.kind, &en, &gen))
         .collect();
-    Ok(StaticSolution {
-        state: s,
-        report,
-        sensors: vals,
-        strain_energy: strain,
-    })
+    (vals, strain)
 }
 
 /// The mesh error of a static solution, measured (see [`check_statics_mesh`]).
@@ -137,7 +144,8 @@ pub fn check_statics_mesh(
             return None;
         }
     };
-    let reference = reference_sensors(model);
+    // where the changes under the loads are measured from: the reference configuration
+    let (reference, e0) = static_sensors(model, &State::new(model), 0.0);
     // Richardson for a second-order error: y_n − y = (y_n − y_2n) / (1 − 2⁻²)
     let richardson = 1.0 / (1.0 - 0.25);
     let mut worst = (0.0f64, String::new());
@@ -174,7 +182,6 @@ pub fn check_statics_mesh(
         }
         by_sensor.push(largest);
     }
-    let e0 = reference_strain(model);
     let se = relative(
         richardson * (sol.strain_energy - fine.strain_energy).abs(),
         (sol.strain_energy - e0)
@@ -220,37 +227,4 @@ fn relative(num: f64, scale: f64) -> f64 {
     } else {
         f64::INFINITY
     }
-}
-
-fn reference_strain(model: &Model) -> f64 {
-    let s = State::new(model);
-    model
-        .elem_data
-        .iter()
-        .enumerate()
-        .map(|(ie, e)| crate::element::strain_energy(e, &crate::joint::elem_state(model, &s, ie)))
-        .sum()
-}
-
-/// Sensor values in the reference configuration without loads: where a static
-/// solution's changes are measured from.
-fn reference_sensors(model: &Model) -> Vec<Vec<f64>> {
-    let s = State::new(model);
-    let en = Energies {
-        strain: reference_strain(model),
-        ..Energies::default()
-    };
-    let mut gen = vec![0.0; model.dofs.len()];
-    Assembler::new(model).evaluate(
-        model,
-        &s,
-        crate::assembly::Coeffs::statics(0.0),
-        &mut gen,
-        None,
-    );
-    model
-        .sensors
-        .iter()
-        .map(|sn| sensors::sample(model, &s, &sn.kind, &en, &gen))
-        .collect()
 }
