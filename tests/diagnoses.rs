@@ -72,13 +72,7 @@ fn mechanism_statics_names_the_hinges_of_the_free_motion() {
 /// curved mesh with no force scale to compare it to).
 #[test]
 fn zero_load_statics_on_the_curved_bend_succeeds_with_zero_iterations() {
-    let out = latdyn(&["statics", "models/bend45.toml", "--set", "P=0", "--json"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = latdyn_json(&["statics", "models/bend45.toml", "--set", "P=0", "--json"]);
     assert_eq!(v["newton_iterations"], 0, "{v}");
     let tip = v["sensors"]["tip"].as_array().unwrap();
     // the tip stays at R sin 45°, R (1 − cos 45°), 0
@@ -389,15 +383,7 @@ fn a_body_coordinate_that_starts_away_from_zero_is_warned_as_a_strained_start() 
     let path = std::env::temp_dir().join(format!("latdyn_held_hub_{}.toml", std::process::id()));
     std::fs::write(&path, held).unwrap();
     let p = path.to_str().unwrap();
-    let json = |args: &[&str]| -> serde_json::Value {
-        let out = latdyn(args);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice(&out.stdout).unwrap()
-    };
+    let json = latdyn_json;
     let warned = |v: &serde_json::Value| {
         v["warnings"].as_array().unwrap().iter().any(|w| {
             w.as_str()

@@ -90,13 +90,7 @@ fn modes_json(args: &[&str]) -> serde_json::Value {
     let mut a = vec!["modes"];
     a.extend_from_slice(args);
     a.push("--json");
-    let out = latdyn(&a);
-    assert!(
-        out.status.success(),
-        "latdyn {a:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("stdout is JSON")
+    latdyn_json(&a)
 }
 
 fn freqs(v: &serde_json::Value) -> Vec<f64> {
@@ -487,13 +481,7 @@ fn past_the_axial_divergence_modes_warn_and_a_steady_start_fails_with_the_reason
     // (0.16) neither happens.
     let m = "models/rotating_cantilever.toml";
     for (ea, diverged) in [("EA=1e3", true), ("EA=1e5", false)] {
-        let out = latdyn(&["modes", m, "--set", "omega=50", "--set", ea, "--json"]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let v = latdyn_json(&["modes", m, "--set", "omega=50", "--set", ea, "--json"]);
         let w = v["warnings"].as_array().unwrap();
         assert_eq!(!w.is_empty(), diverged, "{ea}: {v}");
         if diverged {
