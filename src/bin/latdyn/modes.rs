@@ -25,15 +25,33 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
         "reference" => false,
         _ => !m.loads.is_empty() || m.gravity != [0.0; 3],
     };
+    // the static equilibrium's own warnings (an element beyond its small-deformation
+    // range, measured as `statics` measures it) hold for the modes about it
+    let mut static_warnings = Vec::new();
     let state = if preload {
-        latdyn::solver::solve_statics(&m)
-            .with_context(|| format!("{}: static equilibrium for the modes", m.path))?
-            .state
+        let mut sol = latdyn::solver::solve_statics(&m)
+            .with_context(|| format!("{}: static equilibrium for the modes", m.path))?;
+        latdyn::solver::check_statics_mesh(&m, &mut sol, || {
+            model::load_refined(
+                &args.model.model,
+                &args.model.set,
+                latdyn::solver::MESH_REFINE,
+            )
+            .map_err(|e| e.to_string())
+        });
+        static_warnings = sol
+            .report
+            .warnings
+            .iter()
+            .map(|w| format!("the static equilibrium the modes are about: {w}"))
+            .collect();
+        sol.state
     } else {
         latdyn::joint::State::new(&m)
     };
     let mut md = latdyn::solver::modes::lowest_modes(&m, &state, args.count)
         .with_context(|| format!("{}: modes", m.path))?;
+    md.warnings.splice(0..0, static_warnings);
     let count = args.count.min(md.frequencies_hz.len());
     md.warnings
         .extend(fewer_modes(args.count, md.frequencies_hz.len(), m.n_eq, ""));
