@@ -47,6 +47,17 @@ fn node_component_names(n: usize) -> Vec<&'static str> {
     names[..n].to_vec()
 }
 
+/// Which components are rotation angles that wrap by 2π (the rotation-vector parts of
+/// node and body sensors): differences between two states are taken modulo 2π there.
+pub fn angle_components(kind: &SensorKind) -> Vec<bool> {
+    match kind {
+        SensorKind::NodeDisplacement { .. } | SensorKind::BodyPose { .. } => {
+            vec![false, false, false, true, true, true]
+        }
+        _ => vec![false; components(kind).len()],
+    }
+}
+
 /// SI units of each component.
 pub fn units(kind: &SensorKind) -> Vec<&'static str> {
     match kind {

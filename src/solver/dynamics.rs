@@ -279,13 +279,7 @@ impl TimeError {
             angle: model
                 .sensors
                 .iter()
-                .map(|sn| match sn.kind {
-                    crate::model::SensorKind::NodeDisplacement { .. }
-                    | crate::model::SensorKind::BodyPose { .. } => {
-                        vec![false, false, false, true, true, true]
-                    }
-                    _ => vec![false; sensors::components(&sn.kind).len()],
-                })
+                .map(|sn| sensors::angle_components(&sn.kind))
                 .collect(),
             e: vec![0.0; n_eq],
             ev: vec![0.0; n_eq],

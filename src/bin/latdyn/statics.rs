@@ -75,7 +75,7 @@ pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
         }
         if let Some(c) = &mesh {
             s += &format!(
-                "  mesh error estimate {:.3e} ({}; from {} and {} elements on the most deformed beam)\n",
+                "  mesh error estimate {:.3e} ({}; from {} and {} elements in all)\n",
                 c.estimate, c.worst, c.elements.0, c.elements.1
             );
         }
