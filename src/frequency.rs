@@ -314,9 +314,18 @@ fn name_line(f: f64, rm: &RotatingModes, ke: usize, om_hz: f64, res: f64) -> Str
 }
 
 /// The kind of a per-variant warning, for summaries: `first_bending_hz: <kind>` for the
-/// warnings above, `energy balance` for an unstable-looking run, else the text up to
-/// its first colon.
+/// warnings above, `energy balance` for an unstable-looking run, one kind for numerical
+/// loss whatever its amount, else the text up to its first colon (after a path point's
+/// "at path point k of n (λ = …): ", so a path sweep's warnings group by kind too).
 pub fn warning_kind(w: &str) -> String {
+    // where on a path, or how much: the same kind at other points and in other amounts
+    let w = match w.strip_prefix("at path point ") {
+        Some(rest) => rest.split_once("): ").map_or(w, |(_, r)| r),
+        None => w,
+    };
+    if w.starts_with("the energy balance lost ") {
+        return "the energy balance lost … % of its scale to numerical dissipation".into();
+    }
     if let Some(rest) = w.strip_prefix("first_bending_hz: ") {
         let kind = rest.split(':').next().unwrap_or(rest);
         return format!("first_bending_hz: {kind}");

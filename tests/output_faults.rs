@@ -240,6 +240,15 @@ fn sigint_mid_path_sweep_keeps_the_points_so_far_marked_interrupted_and_exits_4(
         states[0], "completed",
         "the first path ended before the signal"
     );
+    // the paths not begun when the signal came have no point: none took a first step
+    // after it (each did until session 30, so the stop took longer the more remained)
+    let points: Vec<u64> = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["points"].as_u64().unwrap())
+        .collect();
+    assert_eq!(points[399], 0, "the last path never began: {points:?}");
     assert_eq!(
         states.iter().filter(|x| **x == "interrupted").count() as u64,
         stopped

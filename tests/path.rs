@@ -598,7 +598,7 @@ fn sweep_path_warns_per_variant_in_json_the_file_and_a_count_on_stderr() {
         &path,
         "--path",
         "--vary",
-        "peak=0.1:0.8:2",
+        "peak=0.1:0.8:3",
         "--json",
         "-o",
         h5.to_str().unwrap(),
@@ -611,15 +611,17 @@ fn sweep_path_warns_per_variant_in_json_the_file_and_a_count_on_stderr() {
         .iter()
         .map(|x| x["warnings"].as_array().unwrap().len())
         .collect();
-    assert_eq!(warned, [0, 1], "{v}");
-    let w = v["variants"][1]["warnings"][0].as_str().unwrap();
+    assert_eq!(warned, [0, 1, 1], "{v}");
+    let w = v["variants"][2]["warnings"][0].as_str().unwrap();
     assert!(
         w.contains("large deformation per element") && w.contains("at path point"),
         "{w}"
     );
+    // one kind, counted once for both variants (their points and λ differ)
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("warning: 1 variant(s)") && err.contains("indices 1"),
+        err.contains("warning: 2 variant(s): large deformation per element")
+            && err.contains("indices 1, 2"),
         "{err}"
     );
     let f = rust_hdf5::H5File::open(&h5).unwrap();
@@ -628,6 +630,53 @@ fn sweep_path_warns_per_variant_in_json_the_file_and_a_count_on_stderr() {
         .unwrap()
         .read_strings()
         .unwrap();
-    assert_eq!(stored.len(), 2);
-    assert!(stored[0].is_empty() && stored[1] == w, "{stored:?}");
+    assert_eq!(stored.len(), 3);
+    assert!(stored[0].is_empty() && stored[2] == w, "{stored:?}");
+}
+
+#[test]
+fn sweep_path_refuses_what_a_path_campaign_cannot_do_before_computing() {
+    // --resume was ignored (every path computed again, the file left interrupted) and
+    // --plan ran the whole sweep; a varied mesh with a `beam_nodes` sensor was found
+    // only when writing (exit 5, a file left "running"). All three are refused first.
+    let model = format!(
+        "{}/tests/models/bent_and_released.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("sweep_path_refuses");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let h5 = dir.join("c.h5");
+    let h5s = h5.to_str().unwrap();
+    for extra in [&["--resume", h5s][..], &["--plan"][..]] {
+        let mut args = vec!["sweep", &model, "--path", "--vary", "peak=0.1:0.8:2"];
+        args.extend_from_slice(extra);
+        let out = latdyn(&args);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {out:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--resume and --plan apply to dynamic campaigns only"),
+            "{err}"
+        );
+    }
+    let text = std::fs::read_to_string(&model).unwrap()
+        + "\n[[sensors]]\nname = \"shape\"\ntype = \"beam_nodes\"\nbeam = \"beam\"\ncomponent = \"z\"\n";
+    let nodes = dir.join("nodes.toml");
+    std::fs::write(&nodes, text).unwrap();
+    let out = latdyn(&[
+        "sweep",
+        nodes.to_str().unwrap(),
+        "--path",
+        "--vary",
+        "elements=2:4:2",
+        "-o",
+        h5s,
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("sensor `shape` has 5 components where variant 0 has 3"),
+        "{err}"
+    );
+    assert!(!h5.exists(), "nothing written");
 }

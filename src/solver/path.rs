@@ -401,6 +401,16 @@ pub fn follow(model: &Model, opts: &PathOptions) -> PathResult {
         state: s.clone(),
         largest_deformation: None,
     };
+    // stopped before it began (a signal while other variants ran): no point at all,
+    // not a first step taken after the signal
+    if opts
+        .stop
+        .as_ref()
+        .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
+    {
+        res.stopped_by = "interrupted";
+        return res;
+    }
     if let Err(e) = follow_into(model, opts, &mut s, &mut res) {
         res.stopped_by = "error";
         res.error = Some(e);

@@ -727,6 +727,16 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     if args.accuracy.is_some() || args.frequency.is_some() || args.verify.is_some() {
         bail!("sweep --path: --accuracy, --frequency and --verify apply to dynamic runs only");
     }
+    // path campaign files carry no campaign identity (README "Not built yet"): they
+    // cannot be resumed or planned, and a --resume was silently ignored (all paths
+    // computed again, the file left as it was)
+    if args.resume.is_some() || args.plan {
+        bail!(
+            "sweep --path: --resume and --plan apply to dynamic campaigns only (a path \
+             campaign's file has no campaign identity to resume from or plan for); run the \
+             paths again with -o"
+        );
+    }
     let (variants, origin) = latdyn::ensemble::variants_with_origin(
         &args.model.model,
         &args.model.set,
@@ -754,6 +764,31 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
         o.stop = Some(stop.clone());
         opts.push(o);
         models.push(m);
+    }
+    // the file holds every variant's sensors with the first's components: a variant
+    // whose mesh changes a sensor's size (`beam_nodes` under a varied `elements`) is
+    // refused before any path is computed, not found when writing
+    if args.output.is_some() {
+        if let Some(m0) = models.first() {
+            for ((m, &gi), _) in models.iter().zip(&chosen).zip(0..) {
+                for (a, b) in m0.sensors.iter().zip(&m.sensors) {
+                    let (na, nb) = (
+                        latdyn::sensors::components(&a.kind).len(),
+                        latdyn::sensors::components(&b.kind).len(),
+                    );
+                    if na != nb {
+                        bail!(
+                            "{}: sensor `{}` has {nb} components where variant {} has {na}: \
+                             the variation changes the model's topology, which one campaign \
+                             file cannot hold; vary it in separate sweeps",
+                            origin.describe(gi, &variants[gi]),
+                            b.name,
+                            chosen[0]
+                        );
+                    }
+                }
+            }
+        }
     }
     let target = claim_optional_output(args.output.as_deref(), &sweep_inputs(args))?;
     let cores = std::thread::available_parallelism()
