@@ -133,3 +133,89 @@ fn a_lock_keeps_the_angular_momentum_about_a_free_hubs_axis() {
         assert!(rel(got, want) < 1e-3, "{got} vs {want}");
     }
 }
+
+/// A cantilever hinged at its root about y (spring k) to a held cart, bent by a tip
+/// moment M about y, the hinge locking at `lock`.
+fn hinged_cantilever(lock: f64) -> latdyn::model::Model {
+    let text = format!(
+        r#"
+[sections.main]
+EA = 1e6
+EIy = 100
+EIz = 100
+GJ = 80
+rhoA = 1
+
+[[nodes]]
+name = "root"
+position = [0, 0, 0]
+[[nodes]]
+name = "tip"
+position = [1, 0, 0]
+
+[[beams]]
+name = "beam"
+from = "root"
+to = "tip"
+elements = 8
+section = "main"
+
+[[bodies]]
+name = "cart"
+position = [0, 0, 0]
+mass = 1.0
+inertia = [1, 1, 1]
+  [[bodies.dofs]]
+  type = "translation"
+  axis = [1, 0, 0]
+  drive = "0*t"
+
+[[joints]]
+name = "h"
+node = "root"
+body = "cart"
+type = "hinge"
+axis = [0, 1, 0]
+stiffness = 1000
+lock_angle = {lock}
+
+[[loads]]
+node = "tip"
+moment = [0, 100, 0]
+
+[[sensors]]
+name = "hinge"
+type = "hinge"
+joint = "h"
+"#
+    );
+    latdyn::model::compile_str(&text, "hinged_cantilever.toml", &[])
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn statics_past_a_lock_angle_says_the_hinge_never_locked() {
+    // One equilibrium under the full loads turns the hinge to M/k = 0.1 rad whatever its
+    // lock angle (0.05 here): the lock is an event along the loading, which plain statics
+    // does not follow. Until session 30 it said nothing; now it warns and names the fix.
+    let m = hinged_cantilever(0.05);
+    let sol = latdyn::solver::solve_statics(&m).unwrap();
+    let angle = common::sensor(&m, &sol.sensors, "hinge")[0];
+    assert!((angle - 0.1).abs() < 1e-9, "{angle}");
+    let w: Vec<_> = sol
+        .report
+        .warnings
+        .iter()
+        .filter(|w| w.starts_with("hinge `h` turned past its lock angle"))
+        .collect();
+    assert_eq!(w.len(), 1, "{:?}", sol.report.warnings);
+    assert!(w[0].contains("statics --path"), "{}", w[0]);
+    // a lock the equilibrium does not reach is not warned
+    let m = hinged_cantilever(0.5);
+    let sol = latdyn::solver::solve_statics(&m).unwrap();
+    assert!(
+        !sol.report.warnings.iter().any(|w| w.contains("lock angle")),
+        "{:?}",
+        sol.report.warnings
+    );
+}

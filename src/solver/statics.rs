@@ -203,7 +203,32 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
     joint::update_kinematics(model, s);
     rep.warnings
         .extend(crate::assembly::deformation_angle_warning(model, s));
+    rep.warnings.extend(passed_locks(model, s));
     Ok(rep)
+}
+
+/// Hinges whose angle went from the reference to the equilibrium across their
+/// `lock_angle`: one equilibrium under the full loads does not see a lock, which is an
+/// event along the way (`statics --path` follows the loads and locks there), so its
+/// numbers past a lock are those of a hinge that never locked.
+fn passed_locks(model: &Model, s: &State) -> Vec<String> {
+    model
+        .hinges
+        .iter()
+        .filter_map(|h| {
+            let la = h.lock_angle?;
+            let (from, to) = (model.dofs[h.dof].q0 - la, s.q[h.dof] - la);
+            (to == 0.0 || from.signum() != to.signum()).then(|| {
+                format!(
+                    "hinge `{}` turned past its lock angle ({la:.6} rad) to {:.6} rad: one \
+                     equilibrium under the full loads does not lock hinges, so these numbers \
+                     are those of a hinge that never locked; `statics --path` follows the \
+                     loads and locks it where it reaches the angle",
+                    h.name, s.q[h.dof]
+                )
+            })
+        })
+        .collect()
 }
 
 /// Whether the applied loads are all zero: the residual at full load equals the one at
