@@ -583,3 +583,31 @@ fn modes_about_a_static_state_carry_its_large_deformation_warning() {
     let v = modes_json(&["models/bend45.toml"]);
     assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
 }
+
+#[test]
+fn a_negative_stiffness_mode_is_warned_not_reported_as_a_frequency_alone() {
+    // The cantilever bent by a tip moment of 300 N·m (3 rad) has ω² < 0 in its first
+    // mode, reported as −21.1 Hz; until session 30 with no word beside it.
+    let v = modes_json(&["models/cantilever.toml", "--set", "M=300"]);
+    let f0 = v["frequencies_hz"][0].as_f64().unwrap();
+    assert!(f0 < 0.0, "{v}");
+    let w = v["warnings"].as_array().unwrap();
+    assert!(
+        w.iter().any(|w| {
+            let w = w.as_str().unwrap();
+            w.starts_with("mode 1 (") && w.contains("negative stiffness")
+        }),
+        "{v}"
+    );
+    // a stable state has no such warning
+    let v = modes_json(&["models/cantilever.toml", "--set", "M=20"]);
+    assert!(v["frequencies_hz"][0].as_f64().unwrap() > 0.0, "{v}");
+    assert!(
+        !v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("negative stiffness")),
+        "{v}"
+    );
+}

@@ -510,6 +510,17 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
                 idx + 1
             ));
         }
+        if !zero && f < 0.0 {
+            res.warnings.push(format!(
+                "mode {} ({f:.6} Hz): negative stiffness (ω² < 0, reported as −|f|), no \
+                 vibration: the state the modes are about is not stable in this mode (its \
+                 linearised motion grows at {:.6} 1/s), or a load that is not conservative \
+                 (a fixed-direction moment on large rotations) makes the symmetric \
+                 analysis inexact there",
+                idx + 1,
+                -f * two_pi
+            ));
+        }
         let big = z
             .iter()
             .fold(0.0f64, |a, &b| if b.abs() > a.abs() { b } else { a });
