@@ -108,9 +108,12 @@ fn shipped_scenes_statics_and_their_deformation_angles() {
     assert!((d.angle - 0.186).abs() < 2e-3, "{d:?}");
     assert_eq!((d.beam.as_str(), d.index_in_beam), ("bend", 0));
     assert_eq!(sol.report.warnings.len(), 1);
-    let check = check_statics_mesh(&m, &mut sol, || {
-        Ok(shipped("bend45.toml", &[("elements", 16.0)]))
-    })
+    let check = check_statics_mesh(
+        &m,
+        &mut sol,
+        || Ok(shipped("bend45.toml", &[("elements", 16.0)])),
+        None,
+    )
     .expect("measured");
     assert!(check.estimate < MESH_ERROR_WARN, "{check:?}");
     assert!(sol.report.warnings.is_empty(), "{:?}", sol.report.warnings);
@@ -164,9 +167,12 @@ fn statics_measures_the_mesh_error_of_a_large_deformation_and_warns_only_above_o
             "{n}: {:?}",
             sol.report.warnings
         );
-        let check = check_statics_mesh(&m, &mut sol, || {
-            Ok(shipped("bend45.toml", &[("elements", (2 * n) as f64)]))
-        })
+        let check = check_statics_mesh(
+            &m,
+            &mut sol,
+            || Ok(shipped("bend45.toml", &[("elements", (2 * n) as f64)])),
+            None,
+        )
         .expect("measured");
         let (tip, energy) = bend45_true_error(n, &fine);
         let est_tip = check.by_sensor[m.sensor_index("tip").unwrap()];
@@ -213,7 +219,7 @@ fn a_mesh_check_that_cannot_run_keeps_the_bound_warning_and_says_why() {
     let mut sol = solve_statics(&m).unwrap();
     let bound = sol.report.warnings.clone();
     assert_eq!(bound.len(), 1);
-    let check = check_statics_mesh(&m, &mut sol, || Err("limit on elements".into()));
+    let check = check_statics_mesh(&m, &mut sol, || Err("limit on elements".into()), None);
     assert!(check.is_none());
     assert_eq!(sol.report.warnings.len(), 1);
     let w = &sol.report.warnings[0];
@@ -230,11 +236,11 @@ fn a_mesh_check_that_cannot_run_keeps_the_bound_warning_and_says_why() {
     // refinement that fails there is said, as the only warning
     let m = twisted(64, 100.0);
     let mut sol = solve_statics(&m).unwrap();
-    let check = check_statics_mesh(&m, &mut sol, || Ok(twisted(128, 100.0))).unwrap();
+    let check = check_statics_mesh(&m, &mut sol, || Ok(twisted(128, 100.0)), None).unwrap();
     assert!(check.estimate < 1e-3, "{check:?}");
     assert!(sol.report.warnings.is_empty(), "{:?}", sol.report.warnings);
     let mut sol = solve_statics(&m).unwrap();
-    assert!(check_statics_mesh(&m, &mut sol, || Err("no memory".into())).is_none());
+    assert!(check_statics_mesh(&m, &mut sol, || Err("no memory".into()), None).is_none());
     assert_eq!(
         sol.report.warnings,
         [
@@ -284,7 +290,7 @@ fn section_forces_are_estimated_at_first_order_and_a_zero_reaction_is_not_round_
     let fine = solve_statics(&bend45_sections(256)).unwrap();
     let m = bend45_sections(8);
     let mut sol = solve_statics(&m).unwrap();
-    let check = check_statics_mesh(&m, &mut sol, || Ok(bend45_sections(16))).unwrap();
+    let check = check_statics_mesh(&m, &mut sol, || Ok(bend45_sections(16)), None).unwrap();
     for name in ["root", "mid", "end"] {
         let k = m.sensor_index(name).unwrap();
         let (y, yr) = (&sol.sensors[k], &fine.sensors[k]);

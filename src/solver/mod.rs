@@ -34,8 +34,16 @@ pub struct StaticSolution {
 
 /// Static equilibrium of `model` under its loads, from the reference configuration.
 pub fn solve_statics(model: &Model) -> Result<StaticSolution, statics::StaticsError> {
+    solve_statics_until(model, None)
+}
+
+/// [`solve_statics`], interrupted once `stop` is set ([`statics::solve_until`]).
+pub fn solve_statics_until(
+    model: &Model,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+) -> Result<StaticSolution, statics::StaticsError> {
     let mut s = State::new(model);
-    let report = statics::solve(model, &mut s)?;
+    let report = statics::solve_until(model, &mut s, stop)?;
     let (sensors, strain_energy) = static_sensors(model, &s, 1.0);
     Ok(StaticSolution {
         state: s,
@@ -118,7 +126,8 @@ pub struct MeshError {
 /// [`crate::assembly::DeformationAngle::warning`]) the warning is that one with the
 /// measurement added, and below the limit that bound warning is removed, since the
 /// reported numbers are then within 1 %. Where the refined model cannot be compiled or
-/// solved, a warning says the error was not measured and why (the bound warning stays).
+/// solved, or `stop` ends its solve (a signal), a warning says the error was not
+/// measured and why (the bound warning stays).
 /// `None` for a model without elements (nothing to refine), for the reference
 /// configuration itself (no Newton correction: nothing deformed), or when the check
 /// could not run.
@@ -126,6 +135,7 @@ pub fn check_statics_mesh(
     model: &Model,
     sol: &mut StaticSolution,
     refined: impl FnOnce() -> Result<Model, String>,
+    stop: Option<&std::sync::atomic::AtomicBool>,
 ) -> Option<MeshError> {
     // without elements there is nothing to refine; a state that needed no Newton
     // correction is the reference configuration (no loads), which no mesh gets wrong
@@ -145,7 +155,7 @@ pub fn check_statics_mesh(
     );
     let elements = (model.elem_data.len(), model.elem_data.len() * MESH_REFINE);
     let fine = refined().and_then(|rm| {
-        let fs = solve_statics(&rm).map_err(|e| e.to_string())?;
+        let fs = solve_statics_until(&rm, stop).map_err(|e| e.to_string())?;
         if fs.sensors.len() != sol.sensors.len()
             || fs
                 .sensors

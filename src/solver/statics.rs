@@ -39,6 +39,11 @@ pub enum StaticsError {
          carry more load along this path (buckling or snap-through)"
     )]
     LimitPoint { lambda: f64, what: String },
+    #[error(
+        "statics interrupted (SIGINT, SIGTERM or SIGHUP) at load factor {lambda:.6}, before \
+         the equilibrium under the full loads"
+    )]
+    Interrupted { lambda: f64 },
     #[error("linear solver: {0}")]
     Linear(#[from] crate::linalg::LinalgError),
 }
@@ -145,6 +150,17 @@ const MIN_LOAD_STEP: f64 = 1e-7;
 
 /// Solve for static equilibrium under the full loads, starting from `s`.
 pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError> {
+    solve_until(model, s, None)
+}
+
+/// [`solve`], ending with [`StaticsError::Interrupted`] before the next load step once
+/// `stop` is set (a signal: a large model's statics takes seconds, and its mesh check
+/// as long again).
+pub fn solve_until(
+    model: &Model,
+    s: &mut State,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+) -> Result<StaticsReport, StaticsError> {
     let asm = Assembler::new(model);
     let mut sys = NewtonSystem::new(model, &asm, s)?;
     let mut lambda = 0.0;
@@ -164,6 +180,9 @@ pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError
     // stall now, not after the whole budget (a fuzzer input took 21 s to reach the cap)
     let mut window = (0usize, lambda);
     while lambda < 1.0 {
+        if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst)) {
+            return Err(StaticsError::Interrupted { lambda });
+        }
         let used = rep.load_steps + rep.rejected_steps;
         if used >= MAX_LOAD_STEPS {
             return Err(stall(model, &asm, &mut sys, s, lambda, &rep));

@@ -31,14 +31,19 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     let state = if preload {
         let mut sol = latdyn::solver::solve_statics(&m)
             .with_context(|| format!("{}: static equilibrium for the modes", m.path))?;
-        latdyn::solver::check_statics_mesh(&m, &mut sol, || {
-            model::load_refined(
-                &args.model.model,
-                &args.model.set,
-                latdyn::solver::MESH_REFINE,
-            )
-            .map_err(|e| e.to_string())
-        });
+        latdyn::solver::check_statics_mesh(
+            &m,
+            &mut sol,
+            || {
+                model::load_refined(
+                    &args.model.model,
+                    &args.model.set,
+                    latdyn::solver::MESH_REFINE,
+                )
+                .map_err(|e| e.to_string())
+            },
+            None,
+        );
         static_warnings = sol
             .report
             .warnings

@@ -1,6 +1,6 @@
 //! The `statics` verb, with and without `--path`.
 
-use anyhow::{anyhow, bail, Context};
+use anyhow::{anyhow, bail};
 use latdyn::model::Model;
 
 use crate::cli::StaticsArgs;
@@ -18,8 +18,11 @@ pub(crate) fn sensor_map(
 }
 
 pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
+    // a signal from here on ends the solve before its next (load or path) step, exit 4:
+    // installed before the model is compiled, which takes long for a large one
+    let stop = crate::stop_flag();
     if sargs.path.path {
-        return statics_path(sargs);
+        return statics_path(sargs, stop);
     }
     if sargs.path.any_option() || sargs.output.is_some() {
         bail!("statics: --control, --lambda-max, --until, --limit-points, --max-length, --max-points, --first-step and -o need --path");
@@ -27,13 +30,26 @@ pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
     let args = &sargs.model;
     let m = args.load()?;
     let t0 = std::time::Instant::now();
-    let mut sol = latdyn::solver::solve_statics(&m).with_context(|| m.path.clone())?;
-    // an element beyond its small-deformation range: measure what that costs the
-    // reported numbers instead of warning on the per-element bound alone
-    let mesh = latdyn::solver::check_statics_mesh(&m, &mut sol, || {
-        latdyn::model::load_refined(&args.model, &args.set, latdyn::solver::MESH_REFINE)
-            .map_err(|e| e.to_string())
-    });
+    // a signal during the mesh check keeps the equilibrium found, reported with the
+    // check not measured
+    let interrupted = || stop.load(std::sync::atomic::Ordering::SeqCst);
+    let mut sol = match latdyn::solver::solve_statics_until(&m, Some(&stop)) {
+        Ok(sol) => sol,
+        Err(e @ latdyn::solver::statics::StaticsError::Interrupted { .. }) => {
+            return Err(fail(EXIT_INTERRUPTED, format!("{}: {e}", m.path)))
+        }
+        Err(e) => return Err(anyhow::Error::new(e).context(m.path.clone())),
+    };
+    // measure what the mesh costs the reported numbers
+    let mesh = latdyn::solver::check_statics_mesh(
+        &m,
+        &mut sol,
+        || {
+            latdyn::model::load_refined(&args.model, &args.set, latdyn::solver::MESH_REFINE)
+                .map_err(|e| e.to_string())
+        },
+        Some(&stop),
+    );
     let wall = t0.elapsed().as_secs_f64();
     let warnings = &sol.report.warnings;
     for w in warnings {
@@ -58,7 +74,7 @@ pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
             "warnings": warnings,
             "wall_s": wall,
         });
-        emit(&format!("{v}\n"))
+        emit(&format!("{v}\n"))?;
     } else {
         let mut s = format!(
             "statics {}: {} load steps, {} Newton iterations, {:.3} s\n",
@@ -79,18 +95,32 @@ pub(crate) fn statics(sargs: &StaticsArgs) -> anyhow::Result<()> {
                 c.estimate, c.worst, c.elements.0, c.elements.1
             );
         }
-        emit(&s)
+        emit(&s)?;
     }
+    if interrupted() {
+        return Err(fail(
+            EXIT_INTERRUPTED,
+            format!(
+                "{}: interrupted (SIGINT, SIGTERM or SIGHUP) during the mesh check; the \
+                 equilibrium above is complete, its mesh error not measured",
+                m.path
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// `statics --path`: one equilibrium path, JSON / text summary, optional campaign file.
-pub(crate) fn statics_path(args: &StaticsArgs) -> anyhow::Result<()> {
+pub(crate) fn statics_path(
+    args: &StaticsArgs,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> anyhow::Result<()> {
     use latdyn::solver::path;
     let m = args.model.load()?;
     let mut opts = args.path.options(&m)?;
     // a signal ends the path before its next step; its points so far are printed and
     // written, the file marked interrupted (exit 4), as an interrupted run's are
-    opts.stop = Some(crate::stop_flag());
+    opts.stop = Some(stop);
     path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
     let model_file = [(args.model.model.as_path(), "the model file")];
     let target = claim_optional_output(args.output.as_deref(), &model_file)?;
