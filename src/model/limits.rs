@@ -60,7 +60,9 @@ impl Default for Limits {
         Limits {
             // a generated model of 100 000 explicit nodes is about 10 MB of TOML
             model_bytes: 64 << 20,
-            // compiling and solving take a few kB per element: about 4 GB at the limit
+            // compiling and solving take about 22 kB per element (measured with `statics`
+            // and `run` on 100 000 and 200 000: 2.1 and 4.4 GB): about 22 GB at the limit,
+            // within this machine class's 24 GiB
             elements: 1_000_000,
             // 6 per node plus bodies and hinges: the element limit with room to spare
             dofs: 10_000_000,

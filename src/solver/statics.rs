@@ -36,9 +36,14 @@ pub enum StaticsError {
     #[error(
         "statics: limit point at load factor {lambda:.6} (the loads reached are {lambda:.6} × \
          the model's loads): the tangent stiffness there {what}, so the structure cannot \
-         carry more load along this path (buckling or snap-through)"
+         carry more load along this path (buckling or snap-through){element}"
     )]
-    LimitPoint { lambda: f64, what: String },
+    LimitPoint {
+        lambda: f64,
+        what: String,
+        /// an element beyond its small-deformation range there (empty if none)
+        element: String,
+    },
     #[error(
         "statics interrupted (SIGINT, SIGTERM or SIGHUP) at load factor {lambda:.6}, before \
          the equilibrium under the full loads"
@@ -375,9 +380,28 @@ fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
         .first()
         .copied()
         .unwrap_or(0.0);
+    // an element past its range softens (its end moments follow sin 2θ / 2): a limit
+    // point there may be the element's, not the structure's
+    let element = crate::assembly::largest_deformation_angle(model, s)
+        .filter(|d| d.angle > crate::assembly::DEFORMATION_ANGLE_WARN)
+        .map(|d| {
+            format!(
+                ". But element {} of beam `{}` ({} elements) is turned {:.3} rad from its \
+                 chord there, beyond its small-deformation range, where its measure of the \
+                 angles softens its end moments by about {:.0} %: the limit may be the \
+                 element's, not the structure's (more elements on that beam tell)",
+                d.index_in_beam,
+                d.beam,
+                d.beam_elements,
+                d.angle,
+                100.0 * d.force_error()
+            )
+        })
+        .unwrap_or_default();
     if min < -FREE_MOTION_TOL * scale {
         Some(StaticsError::LimitPoint {
             lambda,
+            element: element.clone(),
             what: format!(
                 "has a negative eigenvalue (scaled {min:.2e}): the equilibrium path is past \
                  a limit or bifurcation point"
@@ -386,6 +410,7 @@ fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
     } else if !free.is_empty() || (min0 > 0.0 && min < LIMIT_SOFTENING * min0) {
         Some(StaticsError::LimitPoint {
             lambda,
+            element: element.clone(),
             what: format!(
                 "is (nearly) singular: its smallest scaled eigenvalue fell to {min:.2e} from \
                  {min0:.2e} unloaded"
