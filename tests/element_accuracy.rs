@@ -472,3 +472,25 @@ fn run_warns_when_an_element_turns_beyond_its_small_deformation_range() {
     assert!(warns("2"));
     assert!(!warns("32"));
 }
+
+#[test]
+fn the_mesh_check_holds_no_more_elements_than_the_element_limit() {
+    // The base model stays in memory while its refinement is solved: with the limit at
+    // 20 elements, bend45's 8 and their 16 (24) are not solved, and the bound warning
+    // says why the error was not measured.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args(["statics", "models/bend45.toml", "--json"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("LATDYN_LIMITS", "elements=20")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["mesh_error_estimate"], serde_json::Value::Null, "{v}");
+    let w = v["warnings"][0].as_str().unwrap();
+    assert!(
+        w.starts_with("large deformation per element")
+            && w.contains("together would hold 24 elements, above the element limit 20"),
+        "{w}"
+    );
+}

@@ -154,7 +154,22 @@ pub fn check_statics_mesh(
         },
     );
     let elements = (model.elem_data.len(), model.elem_data.len() * MESH_REFINE);
-    let fine = refined().and_then(|rm| {
+    // the base model stays in memory while the refined one is solved: together they
+    // may hold no more elements than one model at the element limit (whose memory that
+    // limit bounds)
+    let lim = crate::model::Limits::from_env()
+        .map(|l| l.elements)
+        .unwrap_or(u64::MAX);
+    let held = (elements.0 + elements.1) as u64;
+    let fine = if held > lim {
+        Err(format!(
+            "the model and its refinement together would hold {held} elements, above the \
+             element limit {lim} (LATDYN_LIMITS key `elements`)"
+        ))
+    } else {
+        refined()
+    };
+    let fine = fine.and_then(|rm| {
         let fs = solve_statics_until(&rm, stop).map_err(|e| e.to_string())?;
         if fs.sensors.len() != sol.sensors.len()
             || fs
