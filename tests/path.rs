@@ -680,3 +680,41 @@ fn sweep_path_refuses_what_a_path_campaign_cannot_do_before_computing() {
     );
     assert!(!h5.exists(), "nothing written");
 }
+
+#[test]
+fn driver_control_without_a_changing_drive_is_warned() {
+    // Lee's frame has loads and no drive: `--control drivers` then repeats one
+    // equilibrium at every point (16 of them), which was printed without a word.
+    let v = latdyn_json(&[
+        "statics",
+        "models/lee_frame.toml",
+        "--path",
+        "--control",
+        "drivers",
+        "--json",
+    ]);
+    let w = v["warnings"].as_array().unwrap();
+    assert!(
+        w.iter().any(|w| w
+            .as_str()
+            .unwrap()
+            .starts_with("--control drivers, but no drive changes")),
+        "{v}"
+    );
+    // a model whose drive moves is not warned so
+    let v = latdyn_json(&[
+        "statics",
+        "tests/models/bent_and_released.toml",
+        "--path",
+        "--json",
+    ]);
+    assert_eq!(v["control"], "drivers");
+    assert!(
+        !v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("no drive changes")),
+        "{v}"
+    );
+}

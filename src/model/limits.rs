@@ -95,11 +95,17 @@ impl Limits {
     /// The defaults with `KEY=VALUE,...` applied (VALUE a positive integer, `1e6` allowed).
     pub fn parse(s: &str) -> Result<Limits, String> {
         let mut l = Limits::default();
+        let mut seen: Vec<&str> = Vec::new();
         for item in s.split(',').map(str::trim).filter(|x| !x.is_empty()) {
             let (k, v) = item
                 .split_once('=')
                 .ok_or_else(|| format!("{ENV}: expected KEY=VALUE, got `{item}`"))?;
             let (k, v) = (k.trim(), v.trim());
+            // which of two values was meant is not for us to guess
+            if seen.contains(&k) {
+                return Err(format!("{ENV}: key `{k}` is given twice"));
+            }
+            seen.push(k);
             let x: f64 = v
                 .parse()
                 .map_err(|_| format!("{ENV}: {k}: `{v}` is not a number"))?;
@@ -256,6 +262,10 @@ mod tests {
         assert!(Limits::parse("elements=0").is_err());
         assert!(Limits::parse("elements=1.5").is_err());
         assert!(Limits::parse("elements=nan").is_err());
+        // a key given twice was decided silently by the last one
+        assert!(Limits::parse("elements=5, elements=7")
+            .unwrap_err()
+            .contains("key `elements` is given twice"));
     }
 
     #[test]

@@ -430,11 +430,14 @@ impl Subst<'_, '_> {
                     .err(span.clone(), field, format!("in `{{{inner}}}`: {e}"))
             })?;
             if v.fract() != 0.0 || v.abs() > 1e15 {
-                return Err(self.x.err(
-                    span,
-                    field,
-                    format!("`{{{inner}}}` is {v}, not a whole number"),
-                ));
+                let what = if v.fract() != 0.0 || !v.is_finite() {
+                    "not a whole number".to_string()
+                } else {
+                    "a whole number beyond 1e15, too large for a name".to_string()
+                };
+                return Err(self
+                    .x
+                    .err(span, field, format!("`{{{inner}}}` is {v}, {what}")));
             }
             out += &format!("{}", v as i64);
             rest = &after[close + 1..];

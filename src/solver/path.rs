@@ -224,6 +224,9 @@ pub struct PathResult {
     /// the most deformed element over the path's points: (point index, its λ, the angle)
     /// (see [`crate::assembly::largest_deformation_angle`])
     pub largest_deformation: Option<(usize, f64, crate::assembly::DeformationAngle)>,
+    /// driver control over a pseudo-time in which no drive changes: every point is the
+    /// same equilibrium (warned)
+    pub drives_still: bool,
 }
 
 impl PathResult {
@@ -249,7 +252,14 @@ impl PathResult {
     /// one; a failed path is checked over the points it reached), named by its index
     /// and λ.
     pub fn warnings(&self) -> Vec<String> {
-        self.largest_deformation
+        let still = self.drives_still.then(|| {
+            "--control drivers, but no drive changes over the path's pseudo-time: every \
+             point holds the same drives and the full loads (--control load follows the \
+             loads instead)"
+                .to_string()
+        });
+        let deformed = self
+            .largest_deformation
             .as_ref()
             .and_then(|(k, lambda, d)| {
                 d.warning(None).map(|w| {
@@ -258,10 +268,29 @@ impl PathResult {
                         self.lambda.len()
                     )
                 })
-            })
-            .into_iter()
-            .collect()
+            });
+        still.into_iter().chain(deformed).collect()
     }
+}
+
+/// Whether some driven coordinate takes another value somewhere in (0, `until`]
+/// (sampled at 256 points, and at t_end and `until`): otherwise a path under driver
+/// control has nothing to follow.
+fn drives_change(model: &Model, until: f64) -> bool {
+    let end = if until.is_finite() && until > 0.0 {
+        until
+    } else {
+        model.solver.t_end
+    };
+    let mut times: Vec<f64> = (1..=256).map(|k| end * k as f64 / 256.0).collect();
+    times.push(model.solver.t_end);
+    model.dofs.iter().any(|d| match &d.mode {
+        DofMode::Driven(f) => {
+            let v0 = f.eval(0.0)[0];
+            times.iter().any(|&t| f.eval(t)[0] != v0)
+        }
+        _ => false,
+    })
 }
 
 /// Newton iterations a step aims at: the arc length grows after easier steps and shrinks
@@ -400,6 +429,7 @@ pub fn follow(model: &Model, opts: &PathOptions) -> PathResult {
         error: None,
         state: s.clone(),
         largest_deformation: None,
+        drives_still: opts.control == Control::Drivers && !drives_change(model, opts.max_param),
     };
     // stopped before it began (a signal while other variants ran): no point at all,
     // not a first step taken after the signal
