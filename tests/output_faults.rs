@@ -220,9 +220,15 @@ fn sigint_mid_path_sweep_keeps_the_points_so_far_marked_interrupted_and_exits_4(
         s(&path),
     ]));
     common::wait_until(30, "the claimed output's lock file", || lock.exists());
-    std::thread::sleep(Duration::from_millis(300));
+    // long enough for the first path to end (0.12 s in a release build, about ten
+    // times that in the debug build `cargo test` makes), short against all 400
+    std::thread::sleep(Duration::from_millis(if cfg!(debug_assertions) {
+        5000
+    } else {
+        500
+    }));
     signal(&child, "INT");
-    let out = finish(child, 60);
+    let out = finish(child, 120);
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(4), "{err}");
     assert!(err.contains("interrupted"), "{err}");
@@ -608,6 +614,41 @@ fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5
         not_run > 1000,
         "no new variant starts after the failure: {not_run} not run"
     );
+}
+
+#[test]
+fn a_path_sweep_whose_file_cannot_be_written_says_so_beside_its_completed_paths() {
+    // The paths are computed first and written at the end: with the directory gone by
+    // then, the JSON said every path "completed" and nothing of the file (exit 5 only).
+    let dir = scratch("path_dir_removed");
+    let sub = dir.join("gone");
+    std::fs::create_dir_all(&sub).unwrap();
+    let path = sub.join("c.h5");
+    let child = spawn(latdyn(&[
+        "sweep",
+        "models/bend45.toml",
+        "--path",
+        "--set",
+        "elements=32",
+        "--lambda-max",
+        "5",
+        "--vary",
+        "P=500:700:20",
+        "--threads",
+        "1",
+        "--json",
+        "-o",
+        s(&path),
+    ]));
+    common::wait_until(30, "the claimed output's lock file", || {
+        sub.join("c.h5.lock").exists()
+    });
+    std::fs::remove_dir_all(&sub).unwrap();
+    let out = finish(child, 120);
+    assert_eq!(out.status.code(), Some(5), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["output_error"].as_str().unwrap().contains("c.h5"), "{v}");
+    assert_eq!(v["variants"].as_array().unwrap().len(), 20);
 }
 
 /// A 1 MiB tmpfs fills up mid-campaign: the sweep stops, the file on it is the last

@@ -145,7 +145,11 @@ pub(crate) fn statics_path(
         out_err = written.err();
     }
     if args.model.json {
-        emit(&format!("{}\n", path::to_json(&m, &r, wall)))?;
+        // the path's status is the computation's; a file that could not be written is
+        // said beside it (exit 5), not hidden behind "completed"
+        let mut v = path::to_json(&m, &r, wall);
+        v["output_error"] = serde_json::json!(out_err.as_ref().map(|e| e.to_string()));
+        emit(&format!("{v}\n"))?;
     } else {
         let mut s = format!(
             "path {} ({} control): {} points, {} Newton iterations, {} rejected steps, {:.3} s; \

@@ -846,6 +846,7 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
             "variants": vs,
             "failed": failed,
             "interrupted": interrupted,
+            "output_error": out_err.as_ref().map(|e| e.to_string()),
             "threads": threads,
             "wall_s": wall,
         });
