@@ -718,3 +718,25 @@ fn driver_control_without_a_changing_drive_is_warned() {
         "{v}"
     );
 }
+
+#[test]
+fn a_path_campaign_named_csv_is_said_to_be_hdf5() {
+    // `run -o x.csv` writes CSV; a path (or any campaign) wrote HDF5 under that name
+    // without a word.
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("path_csv_name");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out_file = dir.join("p.csv");
+    let out = latdyn(&[
+        "statics",
+        "tests/models/bent_and_released.toml",
+        "--path",
+        "-o",
+        out_file.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("is written as HDF5"), "{err}");
+    let head = std::fs::read(&out_file).unwrap();
+    assert_eq!(&head[..8], b"\x89HDF\r\n\x1a\n", "an HDF5 file");
+}

@@ -227,6 +227,18 @@ pub(crate) fn is_csv(path: &std::path::Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
 }
 
+/// A campaign file (sweep, merge, path) is HDF5 whatever its name: a `.csv` name, which
+/// makes `run -o` write CSV, is said on stderr instead of written over silently.
+pub(crate) fn note_campaign_format(path: Option<&std::path::Path>) {
+    if let Some(p) = path.filter(|p| is_csv(p)) {
+        eprintln!(
+            "note: {}: a campaign is written as HDF5 (the campaign layout, README \
+             \"Campaign output\") whatever the file's extension; `run -o FILE.csv` writes CSV",
+            p.display()
+        );
+    }
+}
+
 /// Write text to stdout; a closed pipe is an error, not a panic.
 pub(crate) fn emit(text: &str) -> anyhow::Result<()> {
     std::io::stdout()

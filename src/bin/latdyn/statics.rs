@@ -124,6 +124,7 @@ pub(crate) fn statics_path(
     path::check_output_size(&m, opts.max_points, 1).map_err(|e| anyhow!("{}: {e}", m.path))?;
     let model_file = [(args.model.model.as_path(), "the model file")];
     let target = claim_optional_output(args.output.as_deref(), &model_file)?;
+    crate::note_campaign_format(args.output.as_deref());
     let t0 = std::time::Instant::now();
     let r = path::follow(&m, &opts);
     let wall = t0.elapsed().as_secs_f64();

@@ -31,6 +31,7 @@ pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
         .map(|p| (p.as_path(), "one of the shard files"))
         .collect();
     let target = claim_output(&args.output, &shards)?;
+    crate::note_campaign_format(Some(&args.output));
     let mut report = MergeReport::default();
     let command_line = latdyn::output::command_line();
     let result = campaign::merge(&args.shards, target, &command_line, &mut report);
@@ -184,6 +185,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         args.output.as_deref().or(args.resume.as_deref()),
         &sweep_inputs(args),
     )?;
+    crate::note_campaign_format(args.output.as_deref());
     let n_var = variants.len().max(1);
     let (stage, gpu_eval) = choose_stage(&args.backend, n_var, n_elem, cores)?;
     // GPU too: one worker per core, each driving its batch; while one worker's round is
@@ -791,6 +793,7 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
         }
     }
     let target = claim_optional_output(args.output.as_deref(), &sweep_inputs(args))?;
+    crate::note_campaign_format(args.output.as_deref());
     let cores = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1);
