@@ -423,14 +423,17 @@ fn a_limit_point_where_an_element_is_beyond_its_range_says_it_may_be_the_element
     // chord, where its sine measure softens its end moments by 41 %. The structure has
     // no such limit (32 elements carry the full moment), so the message must say the
     // limit may be the element's and how to tell.
-    let out = latdyn(&[
-        "statics",
-        "models/cantilever.toml",
-        "--set",
-        "M=500",
-        "--set",
-        "elements=4",
-    ]);
+    let statics = |elements: &str| {
+        latdyn(&[
+            "statics",
+            "models/cantilever.toml",
+            "--set",
+            "M=500",
+            "--set",
+            &format!("elements={elements}"),
+        ])
+    };
+    let out = statics("4");
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -439,13 +442,6 @@ fn a_limit_point_where_an_element_is_beyond_its_range_says_it_may_be_the_element
             && err.contains("the limit may be the element's, not the structure's"),
         "{err}"
     );
-    let out = latdyn(&[
-        "statics",
-        "models/cantilever.toml",
-        "--set",
-        "M=500",
-        "--set",
-        "elements=32",
-    ]);
+    let out = statics("32");
     assert!(out.status.success(), "{out:?}");
 }

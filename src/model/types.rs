@@ -192,6 +192,17 @@ pub struct Hinge {
     pub lock_time: Option<f64>,
 }
 
+impl Hinge {
+    /// Whether the hinge angle going from `from` to `to` reaches or crosses its
+    /// `lock_angle` (false without one): the one rule of dynamics, paths and statics.
+    pub fn reaches_lock_angle(&self, from: f64, to: f64) -> bool {
+        self.lock_angle.is_some_and(|la| {
+            let (before, now) = (from - la, to - la);
+            now == 0.0 || before.signum() != now.signum()
+        })
+    }
+}
+
 /// A dead (non-follower) load on a node, global frame, scaled by the load factor.
 #[derive(Clone, Debug)]
 pub struct NodeLoad {

@@ -1441,11 +1441,7 @@ impl<'m> Integrator<'m> {
             }
             let th = self.s.q[h.dof];
             let by_time = h.lock_time.is_some_and(|tl| self.s.t >= tl - 1e-12);
-            let by_angle = h.lock_angle.is_some_and(|la| {
-                let before = self.prev_q[h.dof] - la;
-                let now = th - la;
-                now == 0.0 || before.signum() != now.signum()
-            });
+            let by_angle = h.reaches_lock_angle(self.prev_q[h.dof], th);
             if by_time || by_angle {
                 if let (true, Some(la)) = (by_angle, h.lock_angle) {
                     self.s.q[h.dof] = la;

@@ -75,6 +75,13 @@ pub struct PathOptions {
 }
 
 impl PathOptions {
+    /// Whether [`Self::stop`] is set.
+    fn stopped(&self) -> bool {
+        self.stop
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
+    }
+
     /// Options ending the path at μ = `max_param`, with the first step of
     /// [`PathOptions::with_scale`] for the control's natural scale: 1 for the load factor
     /// (the loads as written), `max_param` for the drivers (their pseudo-time ends at
@@ -433,11 +440,7 @@ pub fn follow(model: &Model, opts: &PathOptions) -> PathResult {
     };
     // stopped before it began (a signal while other variants ran): no point at all,
     // not a first step taken after the signal
-    if opts
-        .stop
-        .as_ref()
-        .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
-    {
+    if opts.stopped() {
         res.stopped_by = "interrupted";
         return res;
     }
@@ -609,11 +612,7 @@ fn follow_into(
     }
 
     loop {
-        if opts
-            .stop
-            .as_ref()
-            .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
-        {
+        if opts.stopped() {
             res.stopped_by = "interrupted";
             return Ok(());
         }
@@ -705,11 +704,7 @@ fn follow_into(
                 continue;
             }
             let th = s.q[h.dof];
-            let by_angle = h.lock_angle.is_some_and(|la| {
-                let before = saved.q[h.dof] - la;
-                let now = th - la;
-                now == 0.0 || before.signum() != now.signum()
-            });
+            let by_angle = h.reaches_lock_angle(saved.q[h.dof], th);
             let by_time = opts.control == Control::Drivers
                 && h.lock_time.is_some_and(|tl| new_mu >= tl - 1e-12);
             if by_angle || by_time {

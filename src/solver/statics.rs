@@ -241,16 +241,16 @@ fn passed_locks(model: &Model, s: &State) -> Vec<String> {
         .iter()
         .filter_map(|h| {
             let la = h.lock_angle?;
-            let (from, to) = (model.dofs[h.dof].q0 - la, s.q[h.dof] - la);
-            (to == 0.0 || from.signum() != to.signum()).then(|| {
-                format!(
-                    "hinge `{}` turned past its lock angle ({la:.6} rad) to {:.6} rad: one \
+            h.reaches_lock_angle(model.dofs[h.dof].q0, s.q[h.dof])
+                .then(|| {
+                    format!(
+                        "hinge `{}` turned past its lock angle ({la:.6} rad) to {:.6} rad: one \
                      equilibrium under the full loads does not lock hinges, so these numbers \
                      are those of a hinge that never locked; `statics --path` follows the \
                      loads and locks it where it reaches the angle",
-                    h.name, s.q[h.dof]
-                )
-            })
+                        h.name, s.q[h.dof]
+                    )
+                })
         })
         .collect()
 }

@@ -772,7 +772,7 @@ pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     // refused before any path is computed, not found when writing
     if args.output.is_some() {
         if let Some(m0) = models.first() {
-            for ((m, &gi), _) in models.iter().zip(&chosen).zip(0..) {
+            for (m, &gi) in models.iter().zip(&chosen) {
                 for (a, b) in m0.sensors.iter().zip(&m.sensors) {
                     let (na, nb) = (
                         latdyn::sensors::components(&a.kind).len(),
