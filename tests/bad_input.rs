@@ -59,6 +59,12 @@ const CASES: &[(&str, usize, &str, &str)] = &[
     ),
     ("dt_zero.toml", 29, "solver.dt", "must be > 0"),
     (
+        "t_end_below_dt_min.toml",
+        28,
+        "solver.t_end",
+        "below dt_min = 1e-9 s, the smallest step",
+    ),
+    (
         "steady_start_on_a_spin_up.toml",
         63,
         "initial.steady",

@@ -2038,6 +2038,7 @@ impl Compiler<'_> {
         let Some(sp) = &spec.solver else {
             return Ok(s);
         };
+        let solver_span = sp.span();
         let sp = sp.get_ref();
         let f = |k: &str| format!("solver.{k}");
         if let Some(v) = &sp.t_end {
@@ -2094,6 +2095,24 @@ impl Compiler<'_> {
         }
         if let Some(v) = &sp.dt_min {
             s.dt_min = self.positive(v, &f("dt_min"))?;
+        }
+        // a run shorter than the smallest step would take no step and report its start
+        // as its end
+        if s.t_end < s.dt_min {
+            let (field, span) = match (&sp.t_end, &sp.dt_min) {
+                (Some(v), _) => (f("t_end"), v.span()),
+                (None, Some(v)) => (f("dt_min"), v.span()),
+                (None, None) => (f("t_end"), solver_span.clone()),
+            };
+            return Err(self.err(
+                span,
+                field,
+                format!(
+                    "t_end = {:e} s is below dt_min = {:e} s, the smallest step: no step \
+                     could be taken",
+                    s.t_end, s.dt_min
+                ),
+            ));
         }
         if let Some(v) = &sp.accuracy {
             let a = self.positive(v, &f("accuracy"))?;
