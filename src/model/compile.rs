@@ -1113,7 +1113,7 @@ impl Compiler<'_> {
                 )
             }
         };
-        Ok(BeamProps {
+        let props = BeamProps {
             ea: e * area,
             eiy: e * iy,
             eiz: e * iz,
@@ -1121,7 +1121,28 @@ impl Compiler<'_> {
             rho_a: rho * area,
             rho_iy: rho * iy,
             rho_iz: rho * iz,
-        })
+        };
+        // a diameter of 1e100 gives I = inf: every force of the element would be NaN
+        let derived = [
+            (props.ea, "EA"),
+            (props.eiy, "EIy"),
+            (props.eiz, "EIz"),
+            (props.gj, "GJ"),
+            (props.rho_a, "rhoA"),
+            (props.rho_iy, "rhoIy"),
+            (props.rho_iz, "rhoIz"),
+        ];
+        if let Some((v, k)) = derived.iter().find(|(v, _)| !v.is_finite()) {
+            return Err(self.err(
+                span,
+                f,
+                format!(
+                    "the {shape_name}'s {k} is {v}: its dimensions and material overflow \
+                     f64"
+                ),
+            ));
+        }
+        Ok(props)
     }
 
     fn bodies(&self, spec: &Spec) -> Result<Vec<BodyDraft>> {

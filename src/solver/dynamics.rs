@@ -141,6 +141,9 @@ const ACCURACY_MAX_RUNS: usize = 6;
 /// fresh Jacobian (convergence slower than this costs more iterations than a refactor).
 const NEWTON_CONTRACTION: f64 = 0.25;
 
+pub static DBG_REFRESH: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+pub static DBG_PRED_ONLY: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+pub static DBG_STEPS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 /// Generalized-α parameters from the spectral radius at infinite frequency.
 #[derive(Clone, Copy, Debug)]
 pub struct AlphaParams {
@@ -248,11 +251,20 @@ struct TimeError {
 }
 
 /// Whether a component's range is large enough to divide by: below 1e-12 of the largest
-/// range of its sensor the component is round-off noise (one rule for the controller's
-/// per-step test and the reported estimate).
-fn significant_range(range: f64, sensor_range: f64) -> bool {
-    range.is_finite() && range > 0.0 && range > 1e-12 * sensor_range
+/// range of its sensor the component is round-off noise, and so is a rotation-vector
+/// component below `ANGLE_NOISE` (one rule for the cap and the reported estimate).
+fn significant_range(range: f64, sensor_range: f64, angle: bool) -> bool {
+    range.is_finite()
+        && range > 0.0
+        && range > 1e-12 * sensor_range
+        && (!angle || range > ANGLE_NOISE)
 }
+
+/// A rotation-vector component whose range stays below this [rad] is round-off: the
+/// shipped four-bar's coupler translates without turning, and its rz drifted by 9e-14
+/// rad over 50 steps (against 0.1 m of its x, so the relative rule above kept it),
+/// which the estimate read as a 200 % error and a warning.
+const ANGLE_NOISE: f64 = 1e-12;
 
 impl TimeError {
     fn new(model: &Model, s: &State, n_eq: usize) -> TimeError {
@@ -307,7 +319,7 @@ impl TimeError {
         let sensor_range = (0..self.hi[k].len())
             .map(|j| self.hi[k][j] - self.lo[k][j])
             .fold(0.0f64, f64::max);
-        if significant_range(range, sensor_range) {
+        if significant_range(range, sensor_range, self.angle[k][c]) {
             range
         } else {
             f64::INFINITY
@@ -330,8 +342,11 @@ impl TimeError {
                 (0..acc[k].len())
                     .map(|c| {
                         let sc = self.scale(k, c);
+                        // the cap holds against the ranges at each step; a component
+                        // whose range was still round-off there (so uncapped) and grew
+                        // later read 57 730 % on a cantilever of EI = 1e12
                         if sc.is_finite() {
-                            acc[k][c] / sc
+                            (acc[k][c] / sc).min(GLOBAL_ERROR_CAP)
                         } else {
                             0.0
                         }
@@ -877,6 +892,18 @@ impl<'m> Integrator<'m> {
         gnew.iter_mut().for_each(|x| *x = 0.0);
         let mut corr = std::mem::take(&mut te.gs);
         if xmax > 0.0 && xmax.is_finite() {
+            if std::env::var_os("LATDYN_DBG_REFACTOR").is_some() {
+                let _ = self
+                    .sys
+                    .evaluate_async(
+                        model,
+                        &self.asm,
+                        &self.trial,
+                        Coeffs::dynamic(bp, gp, 1.0),
+                        true,
+                    )
+                    .await;
+            }
             self.te.r0.clone_from(&self.sys.r);
             self.te.gen0.clone_from(&self.sys.gen);
             let coeffs = Coeffs::dynamic(bp, gp, 1.0);
@@ -962,7 +989,7 @@ impl<'m> Integrator<'m> {
             let range = |c: usize| te.hi[k][c].max(y[c]) - te.lo[k][c].min(y[c]);
             let sensor_range = (0..y.len()).map(range).fold(0.0f64, f64::max);
             for (c, d) in dy.iter().enumerate() {
-                if significant_range(range(c), sensor_range) && d.is_finite() {
+                if significant_range(range(c), sensor_range, te.angle[k][c]) && d.is_finite() {
                     worst = worst.max(d / range(c));
                 }
             }
@@ -1242,6 +1269,7 @@ impl<'m> Integrator<'m> {
         let mut prev_res = f64::INFINITY;
         // coordinate change of the last Newton correction (positions and angles)
         let mut last_correction = f64::INFINITY;
+        let mut dbg_refreshed = false;
         for it in 0..model.solver.max_iter.max(1) {
             // rebuild the state at t_{n+1} from the step start and the current accelerations
             s.clone_from(start);
@@ -1295,10 +1323,19 @@ impl<'m> Integrator<'m> {
                     return Ok(StepResult::Failed);
                 }
                 converged = Some((it, info));
+                DBG_STEPS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if dbg_refreshed {
+                    DBG_REFRESH.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                } else if it >= 1 {
+                    DBG_PRED_ONLY.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
                 break;
             }
             // slow contraction (or growth) with the old Jacobian: refresh it here, at
             // this state, before taking the step
+            if !factor && res > NEWTON_CONTRACTION * prev_res {
+                dbg_refreshed = true;
+            }
             if !factor
                 && res > NEWTON_CONTRACTION * prev_res
                 && self
@@ -1647,6 +1684,7 @@ impl<'m> Integrator<'m> {
                     if self.h < self.model.solver.dt_min {
                         let (dof, residual) = worst_dof(self.model, &self.sys.r);
                         let cause = match &self.factor_failure {
+                            _ if !residual.is_finite() => super::FORCES_NOT_FINITE.to_string(),
                             Some(e) => format!(
                                 "; the step's matrix (mass plus the step's share of damping \
                                  and stiffness) could not be factored at any step size ({e}): \
@@ -1701,10 +1739,29 @@ impl<'m> Integrator<'m> {
                 false => (k, 0.0, 0.0),
             })
             .collect();
+        // a factor that is not finite between two step ends (a pole inside a step:
+        // `1e-3/(t - 0.0205)` at dt = 1e-3) has no impulse to compare: the steps apply it
+        // at their ends only, and its shares are NaN
+        for &(k, miss, off) in &shares {
+            if !(miss.is_finite() && off.is_finite()) {
+                let l = &self.model.loads[k];
+                st.notes.push(format!(
+                    "the time factor `{}` of load {} (on node `{}`) is not finite somewhere \
+                     between two step ends (a pole or a NaN inside a step): the steps apply \
+                     it at their ends only, and what it does between them is not checked \
+                     (load_impulse_error and load_sampling_error are null); make it finite \
+                     over the run",
+                    l.scale.as_ref().map_or("", |f| &*f.source),
+                    k + 1,
+                    self.model.node_names[l.node],
+                ));
+            }
+        }
         let largest = |share: fn(&(usize, f64, f64)) -> f64| {
             shares
                 .iter()
                 .map(|x| (x.0, share(x)))
+                .filter(|x| x.1.is_finite())
                 .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
         };
         let missed = largest(|x| x.1);
@@ -2817,6 +2874,14 @@ async fn run_fixed(
         }
     }
     let mut stats = integ.run_stats();
+    if std::env::var_os("LATDYN_DBG").is_some() {
+        eprintln!(
+            "DBG steps {} refreshed {} pred_only {}",
+            DBG_STEPS.swap(0, std::sync::atomic::Ordering::Relaxed),
+            DBG_REFRESH.swap(0, std::sync::atomic::Ordering::Relaxed),
+            DBG_PRED_ONLY.swap(0, std::sync::atomic::Ordering::Relaxed)
+        );
+    }
     if let Some(w) = deformed.and_then(|(d, t)| d.warning(Some(t))) {
         stats.notes.push(w);
     }

@@ -133,6 +133,12 @@ impl Convergence {
     /// Whether residual `res` (max norm) at force scale `scale` is converged; call once
     /// per iteration, in order.
     pub fn converged(&mut self, res: f64, scale: f64) -> bool {
+        // forces that overflowed (a stiffness or a load near f64's largest) compare with
+        // nothing: every residual would pass against an infinite scale
+        if !scale.is_finite() {
+            self.stalled = false;
+            return false;
+        }
         let scale = scale.max(f64::MIN_POSITIVE);
         let rel = res / scale;
         let stalled = rel > 0.5 * self.prev;
@@ -326,6 +332,14 @@ impl NewtonSystem {
 }
 
 /// Infinity norm.
+/// Largest magnitude; NaN if any entry is NaN (`f64::max` would pass over it, and a
+/// residual of NaN forces read as 0, converged: EA = 1e308 "solved" with no deflection).
 pub fn norm_inf(v: &[f64]) -> f64 {
-    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+    v.iter().fold(0.0, |m: f64, x| {
+        if x.is_nan() || m.is_nan() {
+            f64::NAN
+        } else {
+            m.max(x.abs())
+        }
+    })
 }

@@ -11,8 +11,7 @@ pub enum StaticsError {
     #[error(
         "statics did not converge: stalled at load factor {lambda:.6} after {iterations} \
          Newton iterations in {steps} load steps (worst residual {residual:.3e} at dof \
-         `{dof}`, [solver] tol = {tol:e}; a tolerance below the model's round-off cannot be \
-         reached){cause}"
+         `{dof}`, [solver] tol = {tol:e}){cause}"
     )]
     NoConvergence {
         lambda: f64,
@@ -85,6 +84,8 @@ pub fn newton(
     let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
     // first (tangent) prediction and the distance Newton travels after it
     let (mut first, mut travel) = (0.0f64, 0.0f64);
+    // coordinate change of the last correction
+    let mut last_correction = f64::INFINITY;
     for it in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
         let (info, factored) = match sys.evaluate(model, asm, s, c, true) {
@@ -98,20 +99,24 @@ pub fn newton(
         // a singular Jacobian does not matter once the residual is converged (a stiff
         // model at zero load, EA = 1e18: the residual is exactly 0)
         let scale = info.map_or(0.0, |i| i.force_scale);
-        if conv.converged(res, scale) {
+        // or a residual that stopped falling after a correction below the coordinates'
+        // round-off: no representable state is closer to equilibrium (the stress-free
+        // reference of a curved mesh at zero load, whose residual is round-off of the
+        // element forces with no force scale to compare to). The correction is applied
+        // first: on a stiff model (EI = 1e14 under 1 N) the whole deflection is a few
+        // ulps of the coordinates, and returning before it reported the unloaded state,
+        // reactions 0
+        if conv.converged(res, scale)
+            || conv.stalled_at_roundoff(last_correction, coord_scale(model))
+        {
             return Ok(crate::assembly::deformation_in_range(model, s).then_some(it));
         }
         if !factored || sys.solve_neg_residual(&mut dx).is_err() {
             return Ok(None);
         }
-        // a correction below the coordinates' round-off: no representable state is closer
-        // to equilibrium (the stress-free reference of a curved mesh at zero load, whose
-        // residual is round-off of the element forces with no force scale to compare to)
-        if norm_inf(&dx) <= Convergence::ROUNDOFF_CORRECTION * f64::EPSILON * coord_scale(model) {
-            return Ok(crate::assembly::deformation_in_range(model, s).then_some(it));
-        }
         crate::assembly::limit_rotation_step(model, &mut dx, MAX_NEWTON_ANGLE);
         let step = norm_inf(&dx);
+        last_correction = step;
         if it == 0 {
             first = step;
         } else {
@@ -280,7 +285,10 @@ fn stall(
     // a tangent that cannot be factored stops Newton before its first iteration; the
     // residual then says nothing of why (a mesh of 3 000 elements of the shipped
     // cantilever: condition above the LU's limit, "stalled ... residual 2.2e-308")
-    let cause = match sys.evaluate(model, asm, s, Coeffs::statics(target), true) {
+    let evaluated = sys.evaluate(model, asm, s, Coeffs::statics(target), true);
+    let (worst, val) = worst_dof(model, &sys.r);
+    let cause = match evaluated {
+        _ if !val.is_finite() => super::FORCES_NOT_FINITE.to_string(),
         Err(e) => format!(
             "; the tangent stiffness could not be factored ({e}): it is singular to working \
              precision (condition estimate above {:e}), as a mechanism's is, or as that of \
@@ -289,9 +297,8 @@ fn stall(
             crate::linalg::SINGULAR_COND_LIMIT,
             model.n_eq
         ),
-        Ok(_) => String::new(),
+        Ok(_) => "; a tolerance below the model's round-off cannot be reached".to_string(),
     };
-    let (worst, val) = worst_dof(model, &sys.r);
     StaticsError::NoConvergence {
         lambda,
         residual: val,

@@ -425,8 +425,8 @@ pub(crate) struct PlotArgs {
     /// --json > FILE.json`, drawn beside the data
     #[arg(long, value_name = "FILE.json", requires = "campbell")]
     pub(crate) modes: Option<PathBuf>,
-    /// Campbell diagram: rotor harmonics n·Ω drawn, n = 1..N
-    #[arg(long, value_name = "N", default_value_t = 6, requires = "campbell")]
+    /// Campbell diagram: rotor harmonics n·Ω drawn, n = 1..N (N at most 100)
+    #[arg(long, value_name = "N", default_value_t = 6, requires = "campbell", value_parser = parse_harmonics)]
     pub(crate) harmonics: usize,
     /// variants (row indices) to plot, e.g. 0,3,5; default all (at most 20 lines)
     #[arg(long, value_name = "I,J,...", value_delimiter = ',')]
@@ -440,4 +440,16 @@ pub(crate) struct PlotArgs {
     /// machine-readable output on stdout (Campbell: the crossings)
     #[arg(long)]
     pub(crate) json: bool,
+}
+
+/// Rotor harmonics of a Campbell diagram: 1 to `MAX_HARMONICS`. Each is a line and a
+/// search for crossings; 1e9 of them asked for 56 GB and aborted.
+fn parse_harmonics(v: &str) -> Result<usize, String> {
+    const MAX_HARMONICS: usize = 100;
+    match v.trim().parse::<usize>() {
+        Ok(n) if (1..=MAX_HARMONICS).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "must be a whole number from 1 to {MAX_HARMONICS} (harmonics drawn), is `{v}`"
+        )),
+    }
 }
