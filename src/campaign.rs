@@ -520,8 +520,19 @@ pub fn merge(
     target: OutputTarget,
     command_line: &str,
     report: &mut MergeReport,
+    stop: Option<&std::sync::atomic::AtomicBool>,
 ) -> Result<(), MergeError> {
     let t0 = std::time::Instant::now();
+    // a signal (SIGINT, SIGTERM: Slurm's scancel) stops the merge between shards and
+    // between stored chunks; the target is left as it was and the temporary file removed
+    let stopped = || stop.is_some_and(|s| s.load(std::sync::atomic::Ordering::SeqCst));
+    let interrupted = |path: &Path| {
+        MergeError::Interrupted(format!(
+            "interrupted by a signal: nothing merged, {} left as it was",
+            path.display()
+        ))
+    };
+    let target_path = target.path().to_path_buf();
     report.output = target.path().display().to_string();
     if inputs.is_empty() {
         return Err(MergeError::Refused("merge: no shard files given".into()));
@@ -532,6 +543,9 @@ pub fn merge(
     let mut duplicated = Vec::new();
     let mut with_verification = Vec::new();
     for (k, p) in inputs.iter().enumerate() {
+        if stopped() {
+            return Err(interrupted(&target_path));
+        }
         let f = CampaignFile::open(p)?;
         match &first {
             None => {
@@ -723,6 +737,10 @@ pub fn merge(
     };
     // a shard that cannot be read is refused input (exit 2), not an output failure (5)
     let input_fault = std::cell::RefCell::new(None::<String>);
+    let signalled = std::cell::Cell::new(false);
+    if stopped() {
+        return Err(interrupted(&target_path));
+    }
     let mut fill = |out: &[H5Dataset]| -> Result<(), OutputError> {
         let bad = |p: &Path, m: String| {
             let m = format!("{}: {m}", p.display());
@@ -755,6 +773,10 @@ pub fn merge(
                 }
                 let chunks_t = n_time.div_ceil(chunk_t);
                 for (row, &g) in f.global_index.iter().enumerate() {
+                    if stopped() {
+                        signalled.set(true);
+                        return Err(OutputError::Invalid("interrupted by a signal".into()));
+                    }
                     for ct in 0..chunks_t {
                         // a chunk never written (a variant that never ran) is absent in
                         // the shard and stays absent (reads NaN) in the merged file
@@ -797,6 +819,9 @@ pub fn merge(
         &mut fill,
     );
     if let Err(e) = written {
+        if signalled.get() {
+            return Err(interrupted(&target_path));
+        }
         return Err(match input_fault.into_inner() {
             Some(m) => MergeError::Refused(m),
             None => e.into(),

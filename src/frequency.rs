@@ -89,6 +89,15 @@ pub fn first_bending(model: &Model, sensor: (usize, usize), x: &[f64], dt: f64) 
     let res = sp.resolution;
     let largest = |out: &mut FirstBending| {
         out.hz = dominant_frequency(x, dt, 0.0, nyq).unwrap_or(f64::NAN);
+        if out.hz.is_nan() {
+            out.warnings.push(
+                "first_bending_hz: not excited: the signal has no line (it is constant, or \
+                 not finite); first_bending_hz is NaN (name a component that moves, \
+                 SENSOR.COMPONENT)"
+                    .to_string(),
+            );
+            return;
+        }
         let cycles = out.hz / res;
         if cycles < MIN_CYCLES {
             out.warnings.push(format!(

@@ -84,8 +84,12 @@ pub fn newton(
     let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
     // first (tangent) prediction and the distance Newton travels after it
     let (mut first, mut travel) = (0.0f64, 0.0f64);
-    // coordinate change of the last correction
+    // coordinate change of the last correction, and the corrections above the
+    // coordinates' round-off (the iterations reported: an unloaded curved mesh takes one
+    // correction at round-off and is still the reference configuration)
     let mut last_correction = f64::INFINITY;
+    let mut counted = 0;
+    let roundoff = Convergence::ROUNDOFF_CORRECTION * asm.eval.unit_roundoff() * coord_scale(model);
     for it in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
         let (info, factored) = match sys.evaluate(model, asm, s, c, true) {
@@ -109,7 +113,7 @@ pub fn newton(
         if conv.converged(res, scale)
             || conv.stalled_at_roundoff(last_correction, coord_scale(model))
         {
-            return Ok(crate::assembly::deformation_in_range(model, s).then_some(it));
+            return Ok(crate::assembly::deformation_in_range(model, s).then_some(counted));
         }
         if !factored || sys.solve_neg_residual(&mut dx).is_err() {
             return Ok(None);
@@ -117,6 +121,9 @@ pub fn newton(
         crate::assembly::limit_rotation_step(model, &mut dx, MAX_NEWTON_ANGLE);
         let step = norm_inf(&dx);
         last_correction = step;
+        if step > roundoff {
+            counted += 1;
+        }
         if it == 0 {
             first = step;
         } else {

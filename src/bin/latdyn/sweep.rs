@@ -30,11 +30,12 @@ pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
         .iter()
         .map(|p| (p.as_path(), "one of the shard files"))
         .collect();
+    let stop = crate::stop_flag();
     let target = claim_output(&args.output, &shards)?;
     crate::note_campaign_format(Some(&args.output));
     let mut report = MergeReport::default();
     let command_line = latdyn::output::command_line();
-    let result = campaign::merge(&args.shards, target, &command_line, &mut report);
+    let result = campaign::merge(&args.shards, target, &command_line, &mut report, Some(&stop));
     let (code, message) = match &result {
         Ok(()) if !report.missing.is_empty() || !report.interrupted.is_empty() => (
             EXIT_INTERRUPTED,
@@ -58,11 +59,15 @@ pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
         ),
         Ok(()) => (0, String::new()),
         Err(MergeError::Output(e)) => (EXIT_OUTPUT, e.to_string()),
+        Err(MergeError::Interrupted(m)) => (EXIT_INTERRUPTED, m.clone()),
         Err(e) => (EXIT_USAGE, e.to_string()),
     };
-    if result.is_err() {
-        report.status = "refused".into();
-    }
+    report.status = match &result {
+        Ok(()) => report.status.clone(),
+        Err(MergeError::Output(_)) => "output_failed".into(),
+        Err(MergeError::Interrupted(_)) => "interrupted".into(),
+        Err(_) => "refused".into(),
+    };
     report.message = message.clone();
     let list = |v: &[usize]| {
         let shown: Vec<String> = v.iter().take(30).map(|g| g.to_string()).collect();
@@ -151,7 +156,21 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                 .sensor_index(name)
                 .ok_or_else(|| anyhow!("--frequency: the model has no sensor `{name}`"))?;
             let comps = latdyn::sensors::components(&m.sensors[k].kind);
-            let c = if comp.is_empty() {
+            let c = if spec.ends_with('.') {
+                return Err(anyhow!(
+                    "--frequency: `{spec}` names no component after the `.` (sensor `{name}` \
+                     has {})",
+                    comps.join(", ")
+                ));
+            } else if comp.is_empty() {
+                if comps.len() > 1 {
+                    eprintln!(
+                        "note: --frequency {name}: the spectrum of its first component, \
+                         `{}`; name another with {name}.COMPONENT ({})",
+                        comps[0],
+                        comps.join(", ")
+                    );
+                }
                 0
             } else {
                 comps.iter().position(|c| *c == comp).ok_or_else(|| {
