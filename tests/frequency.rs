@@ -318,3 +318,44 @@ fn crossings_edge_cases() {
     assert!(campbell_crossings(&[1.0], &[1.0], 0).is_empty());
     assert_eq!(campbell_crossings(&[1.0], &[1.0], 1), [(1, 1.0)]);
 }
+
+/// `--frequency angle` on the pendulum takes the sensor's first component, `x`, which
+/// is always 0: `first_bending_hz` was NaN with no warning. Now the variant warns `not
+/// excited`, stderr notes which component was taken, and `angle.` (no component) is
+/// refused.
+#[test]
+fn a_frequency_of_a_constant_component_is_warned_and_the_component_taken_is_noted() {
+    let out = latdyn(&[
+        "sweep",
+        "models/pendulum.toml",
+        "--vary",
+        "theta0=0.1:0.2:2",
+        "--set",
+        "t_end=6",
+        "--frequency",
+        "angle",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("note: --frequency angle: the spectrum of its first component"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for x in v["variants"].as_array().unwrap() {
+        assert!(x["derived"]["first_bending_hz"].is_null(), "{x}");
+        let w = x["warnings"].to_string();
+        assert!(w.contains("first_bending_hz: not excited"), "{w}");
+    }
+    let out = latdyn(&[
+        "sweep",
+        "models/pendulum.toml",
+        "--vary",
+        "theta0=0.1:0.2:2",
+        "--frequency",
+        "angle.",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("names no component"));
+}

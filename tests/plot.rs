@@ -562,3 +562,21 @@ fn chart_outputs_follow_the_output_safety_policy() {
     names.sort();
     assert_eq!(names, ["adir.png", "good.svg", "link.svg", "victim.txt"]);
 }
+
+/// `--harmonics` is bounded: 1e9 harmonics asked for 56 GB and aborted (exit 134).
+#[test]
+fn a_campbell_diagram_with_absurdly_many_harmonics_is_refused() {
+    let o = latdyn(&[
+        "plot",
+        "nonexistent.h5",
+        "--campbell",
+        "omega",
+        "--harmonics",
+        "1000000000",
+        "-o",
+        "never.svg",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("from 1 to 100"), "{err}");
+}

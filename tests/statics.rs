@@ -232,3 +232,39 @@ at = 0.25
         }
     }
 }
+
+/// A stiff cantilever's whole deflection is a few ulps of its coordinates (P L³/3EI =
+/// 3.3e-15 m at EI = 1e14 under 1 N). Its first Newton correction was below the
+/// coordinates' round-off and statics returned before applying it: the unloaded state,
+/// root moment 0 and tip 0, exit 0. Equilibrium needs the moment whatever the stiffness.
+#[test]
+fn a_stiff_cantilever_still_carries_its_load_to_the_root() {
+    for ei in [1e14, 1e20] {
+        let props = format!("EA = {ei:e}\nEIy = {ei:e}\nEIz = {ei:e}\nGJ = {ei:e}\nrhoA = 1.0");
+        let m = straight_beam("clamped", 8, &props, [0.0, 0.0, 1.0], [0.0; 3], "");
+        let sol = solve_statics(&m).unwrap();
+        let tip = sensor(&m, &sol.sensors, "tip");
+        assert!(
+            rel(tip[2], 1.0 / (3.0 * ei)) < 1e-6,
+            "EI = {ei:e}: w = {:e}",
+            tip[2]
+        );
+    }
+}
+
+/// Forces that overflow f64 (EA = 1e308) are NaN, and a NaN residual used to pass the
+/// convergence test (its largest magnitude, taken with f64::max, skipped the NaN): the
+/// unloaded state came back as the equilibrium, exit 0. Now an error names the cause.
+#[test]
+fn forces_that_overflow_are_an_error_not_an_equilibrium() {
+    let out = latdyn(&[
+        "statics",
+        "models/cantilever.toml",
+        "--set",
+        "EA=1e308",
+        "--json",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("the forces are not finite"), "{err}");
+}

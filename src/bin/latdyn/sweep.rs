@@ -35,7 +35,13 @@ pub(crate) fn merge(args: &MergeArgs) -> anyhow::Result<()> {
     crate::note_campaign_format(Some(&args.output));
     let mut report = MergeReport::default();
     let command_line = latdyn::output::command_line();
-    let result = campaign::merge(&args.shards, target, &command_line, &mut report, Some(&stop));
+    let result = campaign::merge(
+        &args.shards,
+        target,
+        &command_line,
+        &mut report,
+        Some(&stop),
+    );
     let (code, message) = match &result {
         Ok(()) if !report.missing.is_empty() || !report.interrupted.is_empty() => (
             EXIT_INTERRUPTED,
