@@ -504,6 +504,14 @@ fn a_huge_lambda_max_starts_like_an_unbounded_path_and_a_small_one_keeps_its_two
     let (code, huge, err) = lee_json(&["--lambda-max", "1e15", "--max-points", "5"]);
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(huge["stopped_by"], "max_points", "{huge}");
+    // a path cut short by its point limit says so (`--first-step 1e-300` ran 2 000
+    // points at λ = 1e-300 and reported them with no word)
+    assert!(
+        huge["warnings"]
+            .to_string()
+            .contains("stopped at its point limit (5 points"),
+        "{huge}"
+    );
     let l = lambdas(&huge);
     assert_eq!(l.len(), 5);
     assert_eq!(l[1], 0.02, "first step 2 % of the loads as written: {l:?}");

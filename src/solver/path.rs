@@ -276,7 +276,19 @@ impl PathResult {
                     )
                 })
             });
-        still.into_iter().chain(deformed).collect()
+        // a path that ran out of points or length ended where it was, not where asked
+        // (`--first-step 1e-300`: 2 000 points at λ = 1e-300, reported as completed)
+        let short = (self.stopped_by == "max_points").then(|| {
+            format!(
+                "the path stopped at its point limit ({} points, arc length {:.3e}) at \
+                 λ = {:.6e}, before the end asked for: raise --max-points, or --first-step \
+                 if the steps stayed small",
+                self.lambda.len(),
+                self.arc.last().copied().unwrap_or(0.0),
+                self.lambda.last().copied().unwrap_or(0.0),
+            )
+        });
+        still.into_iter().chain(deformed).chain(short).collect()
     }
 }
 

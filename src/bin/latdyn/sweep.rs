@@ -394,6 +394,24 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     .unwrap_or_default()
             ),
         ),
+        // every variant done: the signal stopped the refined runs of --verify only, and
+        // the file is complete
+        None if interrupted
+            && outcomes.iter().all(|o| {
+                matches!(
+                    o.state,
+                    latdyn::output::VariantState::Completed | latdyn::output::VariantState::Failed
+                )
+            }) =>
+        {
+            (
+                "interrupted",
+                "interrupted by a signal during the --verify runs: every variant ran and the \
+                 campaign file is complete; the verification covers only the refined runs \
+                 that finished"
+                    .to_string(),
+            )
+        }
         None if interrupted => (
             "interrupted",
             "interrupted by a signal; the campaign file is marked interrupted".to_string(),
