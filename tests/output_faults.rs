@@ -985,3 +985,55 @@ fn panics_become_one_clean_line_and_exit_70() {
         );
     }
 }
+
+/// `merge` had no signal handler: SIGINT was ignored (the merge ran to its end) and
+/// SIGTERM (Slurm's scancel) or SIGHUP killed it, leaving its temporary file and lock.
+/// Now it stops between stored chunks: exit 4, nothing written, no temporary, no lock.
+#[test]
+fn sigterm_mid_merge_writes_nothing_and_leaves_no_temporary_or_lock() {
+    let dir = scratch("sigterm_merge");
+    let shards: Vec<PathBuf> = (1..=2).map(|k| dir.join(format!("s{k}.h5"))).collect();
+    for (k, p) in shards.iter().enumerate() {
+        let shard = format!("{}/2", k + 1);
+        let o = run_for(
+            latdyn(&[
+                "sweep",
+                "models/pendulum.toml",
+                "--vary",
+                "theta0=0.1:3:3000",
+                "--set",
+                "t_end=0.2",
+                "--shard",
+                &shard,
+                "-o",
+                s(p),
+            ]),
+            600,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let merged = dir.join("m.h5");
+    let child = spawn(latdyn(&[
+        "merge",
+        s(&shards[0]),
+        s(&shards[1]),
+        "-o",
+        s(&merged),
+        "--json",
+    ]));
+    common::wait_until(60, "the merge's temporary file", || {
+        std::fs::read_dir(&dir).is_ok_and(|d| {
+            d.filter_map(|e| e.ok())
+                .any(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        })
+    });
+    signal(&child, "TERM");
+    let out = finish(child, 60);
+    assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "interrupted", "{v}");
+    assert!(stderr(&out).contains("nothing merged"), "{}", stderr(&out));
+    assert!(!merged.exists(), "no merged file");
+    assert!(!dir.join("m.h5.lock").exists(), "lock file removed");
+    no_temporaries(&dir);
+}
