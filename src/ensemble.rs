@@ -1148,8 +1148,17 @@ fn run_core(
         let mut members = Vec::with_capacity(batch.len());
         let mut member_variant = Vec::with_capacity(batch.len());
         for v in batch.clone() {
-            if output_failed.load(Ordering::SeqCst) {
-                outcomes[v - batch.start] = Some(not_run(c, p, v, keep_history));
+            // a variant not begun when the output failed or a signal came stays pending
+            // (`merge` counts it missing, not interrupted: it never ran)
+            let why = if output_failed.load(Ordering::SeqCst) {
+                Some("the output file could not be written")
+            } else if stop.load(Ordering::SeqCst) {
+                Some("interrupted by a signal before it began")
+            } else {
+                None
+            };
+            if let Some(why) = why {
+                outcomes[v - batch.start] = Some(not_run(c, p, v, keep_history, why));
                 continue;
             }
             if let Some(w) = &writer {
@@ -1267,14 +1276,15 @@ pub fn identify(
     .map_err(EnsembleError::Invalid)
 }
 
-/// The outcome of a variant not started because the output had already failed.
-fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool) -> Outcome {
+/// The outcome of a variant not started (`why`: the output had already failed, or a
+/// signal had come).
+fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool, why: &str) -> Outcome {
     let m = &p.models[v];
     Outcome {
         global_index: p.global_index[v],
         parameters: c.variants[p.global_index[v]].clone(),
         state: VariantState::Pending,
-        message: "not run: the output file could not be written".into(),
+        message: format!("not run: {why}"),
         t_fail: f64::NAN,
         steps: 0,
         rejected_steps: 0,

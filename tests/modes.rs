@@ -611,3 +611,35 @@ fn a_negative_stiffness_mode_is_warned_not_reported_as_a_frequency_alone() {
         "{v}"
     );
 }
+
+/// The rigid flap of an articulated blade turns at Ω in the rotating frame; on a hub
+/// barely turning that pair of roots is nearly double and the eigen-solver finds it only
+/// to its round-off scale: Ω = 1e-4 rad/s read 0 Hz (true 1.6e-5) with no word. Such a
+/// frequency is now warned, and a normal speed is not.
+#[test]
+fn a_frequency_within_the_eigen_solvers_round_off_of_zero_is_warned() {
+    let slow = common::latdyn_json(&[
+        "modes",
+        "models/flapping_blade.toml",
+        "--set",
+        "omega=1e-4",
+        "--count",
+        "3",
+        "--json",
+    ]);
+    let w = slow["warnings"].to_string();
+    assert!(
+        w.contains("mode 1 (") && w.contains("round-off scale of zero"),
+        "{slow}"
+    );
+    let normal = common::latdyn_json(&[
+        "modes",
+        "models/flapping_blade.toml",
+        "--set",
+        "omega=1",
+        "--count",
+        "3",
+        "--json",
+    ]);
+    assert_eq!(normal["warnings"], serde_json::json!([]), "{normal}");
+}

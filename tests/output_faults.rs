@@ -185,6 +185,9 @@ fn sigterm_mid_sweep_leaves_a_readable_file_marked_interrupted_and_exits_4() {
     assert_eq!(status, "interrupted");
     assert!(state.contains(&2) && state.contains(&4), "{state:?}");
     assert!(!state.contains(&1), "no variant left running: {state:?}");
+    // the variants not begun stay pending (they were marked interrupted at t = 0, which
+    // merge counted as interrupted, not missing)
+    assert!(state.contains(&0), "{state:?}");
     if let Some(h) = h5py_summary(&path) {
         assert_eq!(h["status"], "interrupted");
         assert_eq!(h["complete"], 0);

@@ -315,6 +315,8 @@ pub struct RotatingModes {
     pub omega: f64,
     /// frequencies seen in the rotating frame [Hz], ascending
     pub frequencies_hz: Vec<f64>,
+    /// below this [Hz] a frequency is not resolved ([`QuadraticModes::resolution_hz`])
+    pub resolution_hz: f64,
     /// modal damping ratios (gyroscopic systems: ~0; negative = unstable)
     pub damping: Vec<f64>,
     /// Newton iterations of the steady-state solve
@@ -347,6 +349,31 @@ pub struct RotatingModes {
 pub const RIGID_DEFORMATION: f64 = 0.05;
 
 impl RotatingModes {
+    /// A warning naming the reported modes (of the lowest `count`) whose frequency is
+    /// below the eigen-solver's resolution, or None.
+    pub fn resolution_warning(&self, count: usize) -> Option<String> {
+        let low: Vec<String> = self
+            .frequencies_hz
+            .iter()
+            .take(count)
+            .enumerate()
+            .filter(|(_, f)| **f < self.resolution_hz)
+            .map(|(k, f)| format!("{} ({f:.3e} Hz)", k + 1))
+            .collect();
+        (!low.is_empty()).then(|| {
+            format!(
+                "mode{} {} within the eigen-solver's round-off scale of zero in this model, \
+                 about {:.2e} Hz: a near-double root (the ±iΩ pair of a hinge on a slow \
+                 hub) is found only to within about that, so the frequency may be off by up \
+                 to as much (the shipped blade's rigid flap at Ω = 1e-4 rad/s read 0 Hz \
+                 for 1.6e-5; at 1e-3 rad/s it is within 2e-4 of Ω/2π)",
+                if low.len() > 1 { "s" } else { "" },
+                low.join(", "),
+                self.resolution_hz
+            )
+        })
+    }
+
     /// Index (into the ascending frequencies) of the lowest mode that deforms a beam
     /// (deformation share ≥ [`RIGID_DEFORMATION`]) and has a nonzero frequency, among
     /// the modes with shapes. None when no such mode was found.
@@ -389,6 +416,7 @@ pub fn rotating_modes_with_shapes(
     Ok(RotatingModes {
         omega: norm(spin.omega),
         frequencies_hz: qm.frequencies_hz,
+        resolution_hz: qm.resolution_hz,
         damping: qm.damping,
         steady_iterations: iters,
         steady_converged: converged,
@@ -875,6 +903,10 @@ pub fn quadratic_eig(
 /// recovered from the condensation; largest component scaled to 1).
 pub struct QuadraticModes {
     pub frequencies_hz: Vec<f64>,
+    /// the eigen-solver's resolution [Hz]: a near-double root (the ±iΩ pair of a hinge
+    /// on a slow hub) is found only to within about this, so a lower frequency is not
+    /// resolved
+    pub resolution_hz: f64,
     pub damping: Vec<f64>,
     pub shapes: Vec<Vec<C64>>,
 }
@@ -1011,6 +1043,7 @@ pub fn quadratic_modes(
     }
     Ok(QuadraticModes {
         frequencies_hz: modes.iter().map(|m| m.0).collect(),
+        resolution_hz: tol0 / (2.0 * std::f64::consts::PI),
         damping: modes.iter().map(|m| m.1).collect(),
         shapes: out_shapes,
     })
@@ -1050,6 +1083,7 @@ mod tests {
         RotatingModes {
             omega: 1.0,
             frequencies_hz: (0..shapes.len()).map(|k| f * (k + 1) as f64).collect(),
+            resolution_hz: 0.0,
             damping: vec![0.0; shapes.len()],
             steady_iterations: 0,
             steady_converged: true,

@@ -152,6 +152,7 @@ pub(crate) fn rotating_modes(
         m.n_eq,
         " in the rotating frame",
     ));
+    warnings.extend(rm.resolution_warning(count));
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
