@@ -236,6 +236,25 @@ pub(crate) fn note_campaign_format(path: Option<&std::path::Path>) {
              \"Campaign output\") whatever the file's extension; `run -o FILE.csv` writes CSV",
             p.display()
         );
+    } else if let Some(p) = path {
+        note_hdf5_name(p);
+    }
+}
+
+/// An output written as HDF5 under a name that does not say so (`-o out.txt`, `-o
+/// notes`) gets a note on stderr: a reader going by the name would not expect it.
+pub(crate) fn note_hdf5_name(path: &std::path::Path) {
+    let hdf5 = path.extension().is_some_and(|e| {
+        ["h5", "hdf5", "hdf", "he5", "nc"]
+            .iter()
+            .any(|x| e.eq_ignore_ascii_case(x))
+    });
+    if !hdf5 {
+        eprintln!(
+            "note: {}: written as HDF5 (README \"Campaign output\"), whatever the name says; \
+             name it .h5 to say so",
+            path.display()
+        );
     }
 }
 

@@ -35,6 +35,7 @@ impl RunSink {
             target.replace_with(text.as_bytes())?;
             Ok(RunSink::Csv { target, text })
         } else {
+            crate::note_hdf5_name(target.path());
             let mut w = latdyn::output::CampaignWriter::create_at(
                 target,
                 &latdyn::output::CampaignMeta::single_run(m, stage, latdyn::output::command_line()),
