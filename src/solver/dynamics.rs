@@ -145,8 +145,9 @@ const ACCURACY_MAX_RUNS: usize = 6;
 /// the converged state first. Measured on the spin-up beam at dt = 0.04 s (steps of
 /// 0.025): with `tol = 1e-4` Newton converges before its contraction test refreshes the
 /// Jacobian, and the estimate read the cap, 2.0, where the run is 2e-3 of its range off
-/// the same run at `tol = 1e-8` (whose estimate, 1.88e-2, the refreshes kept right);
-/// refactored, 1.85e-2. Such steps are rare at the steps that meet 1 %: 4 of the spin-up
+/// the same run at `tol = 1e-8` (whose estimate, 1.84e-2, the refreshes kept right);
+/// with this rule 2.25e-2 (1.85e-2 refactoring at every step, which would cost a
+/// factorization per step everywhere). Such steps are rare at the steps that meet 1 %: 4 of the spin-up
 /// beam's 4 000 at its shipped step, 69 of the blade's 10 000 (the blade's first
 /// residuals are below 1e-2 of the scale in 94 % of its steps).
 const TRANSPORT_REFRESH: f64 = 0.1;
@@ -1351,11 +1352,9 @@ impl<'m> Integrator<'m> {
             }
             // slow contraction (or growth) with the old Jacobian: refresh it here, at
             // this state, before taking the step
-            if !factor && res > NEWTON_CONTRACTION * prev_res {
-                refreshed = true;
-            }
-            if !factor
-                && res > NEWTON_CONTRACTION * prev_res
+            let slow = !factor && res > NEWTON_CONTRACTION * prev_res;
+            refreshed |= slow;
+            if slow
                 && self
                     .sys
                     .evaluate_async(model, &self.asm, s, coeffs, true)

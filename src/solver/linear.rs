@@ -331,8 +331,7 @@ impl NewtonSystem {
     }
 }
 
-/// Infinity norm.
-/// Largest magnitude; NaN if any entry is NaN (`f64::max` would pass over it, and a
+/// Infinity norm: the largest magnitude; NaN if any entry is NaN (`f64::max` would pass over it, and a
 /// residual of NaN forces read as 0, converged: EA = 1e308 "solved" with no deflection).
 pub fn norm_inf(v: &[f64]) -> f64 {
     v.iter().fold(0.0, |m: f64, x| {

@@ -127,8 +127,8 @@ pub struct MeshError {
 /// but at least [`crate::verify::REST_FRACTION`] of the model's own scale in that unit
 /// (lengths: its extent; forces: strain energy over extent or the largest force term at
 /// the equilibrium; moments: strain energy or that force term times the extent;
-/// energies: strain energy; angles: 1 rad), so that a sensor the loads do not move (a reaction that is
-/// zero by symmetry) does not turn round-off into an error. Rotation-vector components
+/// energies: strain energy; angles: 1 rad), so that a sensor the loads do not move (a
+/// reaction that is zero by symmetry) does not turn round-off into an error. Rotation-vector components
 /// are compared modulo 2π.
 ///
 /// Above [`MESH_ERROR_WARN`] it warns, naming the sensor; where an element left its
@@ -212,7 +212,7 @@ pub fn check_statics_mesh(
     let extent = model_extent(model);
     // forces and moments: at least the largest force term at the equilibrium (a moment
     // that is zero at a free end, sensed alone without the section's forces, read its
-    // round-off, 3e-9 N·m, as a 175 % error against a strain-energy floor of 1e-10)
+    // round-off, 3e-9 N·m, as a 175 % error against a strain-energy floor of 1.7e-9)
     let forces = if sol.force_scale.is_finite() {
         sol.force_scale
     } else {
