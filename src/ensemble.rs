@@ -365,7 +365,7 @@ pub fn variants_with_origin(
             lim.output_values,
         )));
     }
-    let g = grid(vary);
+    let g = grid(vary)?;
     let origin = Origin {
         csv_columns: rows.as_ref().map_or(0, |r| r[0].len()),
         csv: csv.map(|p| (p.to_path_buf(), lines)),
@@ -390,10 +390,25 @@ pub fn variants_with_origin(
 
 /// The full grid of several ranges (last range varies fastest); callers check its size
 /// first (see [`variants`]).
-pub fn grid(ranges: &[Range]) -> Vec<Vec<(String, f64)>> {
+pub fn grid(ranges: &[Range]) -> Result<Vec<Vec<(String, f64)>>, EnsembleError> {
     let mut out: Vec<Vec<(String, f64)>> = vec![vec![]];
+    let total: f64 = ranges.iter().map(|r| r.count as f64).product();
     for r in ranges {
-        let mut next = Vec::with_capacity(out.len() * r.count);
+        // limits raised past the machine (`LATDYN_LIMITS=variants=1e18`) let a grid of
+        // 2.8e14 variants ask for 103 GB here, which aborted (exit 134)
+        let want = out.len().saturating_mul(r.count);
+        let mut next = Vec::new();
+        next.try_reserve_exact(want).map_err(|_| {
+            EnsembleError::Invalid(format!(
+                "the grid of --vary ranges has {} variants: their list alone does not fit \
+                 in memory (at least {} bytes); vary fewer values (LATDYN_LIMITS key \
+                 `variants` bounds a campaign for this reason)",
+                model::limits::count(total),
+                model::limits::count(
+                    want as f64 * std::mem::size_of::<Vec<(String, f64)>>() as f64
+                )
+            ))
+        })?;
         for row in &out {
             for v in r.values() {
                 let mut row = row.clone();
@@ -403,7 +418,7 @@ pub fn grid(ranges: &[Range]) -> Vec<Vec<(String, f64)>> {
         }
         out = next;
     }
-    out
+    Ok(out)
 }
 
 /// The fields of one CSV line (RFC 4180 on one physical line): separated by commas,

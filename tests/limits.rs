@@ -322,3 +322,22 @@ fn mode_counts_are_bounded() {
     let out = latdyn(&["modes", CANTILEVER, "--count", "0"]);
     fails_with(&out, &["--count", "from 1 to 100000"]);
 }
+
+/// Limits raised past the machine let a grid whose variant list alone cannot be held
+/// reach the allocator, which aborted (exit 134, "memory allocation of 103079215104
+/// bytes failed"). The list is now reserved fallibly: exit 2 naming the size.
+#[test]
+fn a_grid_too_large_for_memory_under_raised_limits_is_refused_not_aborted() {
+    let out = latdyn_env(
+        &[
+            "sweep",
+            "models/pendulum.toml",
+            "--set",
+            "t_end=0.1",
+            "--vary",
+            "theta0=1:2:1000000000000",
+        ],
+        &[("LATDYN_LIMITS", "variants=1e18,output_values=1e18")],
+    );
+    fails_with(&out, &["1000000000000 variants", "does not fit in memory"]);
+}
