@@ -70,16 +70,13 @@ pub fn check_count(k: usize, n: usize, note: &str) -> Result<(), String> {
 /// over the base run (max_b − min_b), but at least [`REST_FRACTION`] × the largest
 /// magnitude of the sensor's components with the same unit (`units`), in both runs. 0
 /// where both runs are the same; infinite where a value is not finite.
-pub fn rel_diff(base: &SensorSummary, refined: &SensorSummary, units: &[&str]) -> Vec<f64> {
-    rel_diff_shared(base, refined, units, false)
-}
-
-/// [`rel_diff`]; with `shared`, each component's scale is at least the largest range of
-/// the sensor's components with its unit: an energy sensor's terms are one account, and a
-/// conserved total (its range the scheme's drift, 1e-6 of the pendulum's energy) is
-/// measured against the energy exchanged, not against that drift (which halves under
-/// refinement and read as a 75 % "not converged").
-pub fn rel_diff_shared(
+///
+/// With `shared`, the scale is also at least the largest base range among the sensor's
+/// components with that unit: an energy sensor's terms are one account, and a conserved
+/// total (its range the scheme's drift, 1e-6 of the pendulum's energy) is measured
+/// against the energy exchanged, not against that drift (which halves under refinement
+/// and read as a 75 % "not converged").
+pub fn rel_diff(
     base: &SensorSummary,
     refined: &SensorSummary,
     units: &[&str],
@@ -105,17 +102,14 @@ pub fn rel_diff_shared(
             if diff == 0.0 {
                 return 0.0;
             }
-            let same_unit = (0..nc)
+            // over the components with this one's unit: the largest magnitude, and the
+            // largest base range
+            let (same_unit, shared_range) = (0..nc)
                 .filter(|&o| units.get(o) == units.get(c))
-                .map(|o| mag[o])
-                .fold(0.0f64, f64::max);
-            let shared_range = match shared {
-                true => (0..nc)
-                    .filter(|&o| units.get(o) == units.get(c))
-                    .map(|o| base.max[o] - base.min[o])
-                    .fold(0.0f64, f64::max),
-                false => 0.0,
-            };
+                .fold((0.0f64, 0.0f64), |(m, r), o| {
+                    (m.max(mag[o]), r.max(base.max[o] - base.min[o]))
+                });
+            let shared_range = if shared { shared_range } else { 0.0 };
             let scale = (base.max[c] - base.min[c])
                 .max(REST_FRACTION * same_unit)
                 .max(shared_range);
@@ -380,7 +374,7 @@ fn check_one(
         .zip(o.sensors.iter().zip(&refined))
         .map(|(s, (b, x))| {
             let energy = matches!(s.kind, crate::model::SensorKind::Energy);
-            rel_diff_shared(b, x, &sensors::units(&s.kind), energy)
+            rel_diff(b, x, &sensors::units(&s.kind), energy)
         })
         .collect();
     out.refined = refined;
@@ -605,15 +599,15 @@ mod tests {
         // x moves over [−1, 1] (range 2); z stays at 1e-17 round-off against a 1 m scale
         let b = s(vec![-1.0, 0.0], vec![1.0, 1e-17]);
         let r = s(vec![-1.02, 0.0], vec![1.0, -1e-17]);
-        let d = rel_diff(&b, &r, &["m", "m"]);
+        let d = rel_diff(&b, &r, &["m", "m"], false);
         assert!((d[0] - 0.01).abs() < 1e-12, "{d:?}");
         assert!(d[1] < 1e-9, "{d:?}");
         // identical runs: 0, also for a sensor that is 0 throughout
         let z = s(vec![0.0], vec![0.0]);
-        assert_eq!(rel_diff(&z, &z, &["m"]), vec![0.0]);
+        assert_eq!(rel_diff(&z, &z, &["m"], false), vec![0.0]);
         // a refined run that blew up
         let inf = s(vec![f64::NAN], vec![f64::NAN]);
-        assert_eq!(rel_diff(&z, &inf, &["m"]), vec![f64::INFINITY]);
+        assert_eq!(rel_diff(&z, &inf, &["m"], false), vec![f64::INFINITY]);
     }
 
     #[test]
@@ -626,9 +620,9 @@ mod tests {
         // kinetic over [0, 5] J; the total at −5.3 J drifts by 1e-5 J, by half that refined
         let b = s(vec![0.0, -5.30001], vec![5.0, -5.3]);
         let r = s(vec![0.0, -5.300005], vec![5.0, -5.3]);
-        let alone = rel_diff(&b, &r, &["J", "J"]);
+        let alone = rel_diff(&b, &r, &["J", "J"], false);
         assert!(alone[1] > 0.4, "{alone:?}");
-        let shared = rel_diff_shared(&b, &r, &["J", "J"], true);
+        let shared = rel_diff(&b, &r, &["J", "J"], true);
         assert!((shared[1] - 1e-6).abs() < 1e-9, "{shared:?}");
         assert_eq!(shared[0], alone[0]);
     }

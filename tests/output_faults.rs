@@ -589,12 +589,17 @@ fn a_second_writer_is_refused_naming_the_first_and_the_first_campaign_survives()
 
 // ---------------------------------------------------------------- I/O errors mid-run
 
-#[test]
-fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5() {
-    let dir = scratch("dir_removed");
-    let sub = dir.join("gone");
+/// A directory the test removes while latdyn writes to `c.h5` in it: (directory, path).
+fn output_in_doomed_dir(test: &str) -> (PathBuf, PathBuf) {
+    let sub = scratch(test).join("gone");
     std::fs::create_dir_all(&sub).unwrap();
     let path = sub.join("c.h5");
+    (sub, path)
+}
+
+#[test]
+fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5() {
+    let (sub, path) = output_in_doomed_dir("dir_removed");
     let child = spawn(long_sweep(2000, &path));
     common::wait_until(30, "a flushed completed variant", || {
         common::completed_variants(&path) > 0
@@ -623,10 +628,7 @@ fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5
 fn a_path_sweep_whose_file_cannot_be_written_says_so_beside_its_completed_paths() {
     // The paths are computed first and written at the end: with the directory gone by
     // then, the JSON said every path "completed" and nothing of the file (exit 5 only).
-    let dir = scratch("path_dir_removed");
-    let sub = dir.join("gone");
-    std::fs::create_dir_all(&sub).unwrap();
-    let path = sub.join("c.h5");
+    let (sub, path) = output_in_doomed_dir("path_dir_removed");
     let child = spawn(latdyn(&[
         "sweep",
         "models/bend45.toml",

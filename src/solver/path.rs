@@ -276,7 +276,7 @@ impl PathResult {
                     )
                 })
             });
-        // a path that ran out of points or length ended where it was, not where asked
+        // a path that ran out of points ended where it was, not where asked
         // (`--first-step 1e-300`: 2 000 points at λ = 1e-300, reported as completed)
         let short = (self.stopped_by == "max_points").then(|| {
             format!(
