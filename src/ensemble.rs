@@ -18,7 +18,7 @@
 //! still returned ([`run_to`]) so the caller can report them.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -649,6 +649,10 @@ pub struct Outcome {
     pub history: Option<dynamics::History>,
     /// the variant ended in a panic (a bug in latdyn), caught and marked failed
     pub panicked: bool,
+    /// after an output failure: whether the file's last good write holds this variant's
+    /// result (`false`: it ran, but the file shows it running or pending, and
+    /// `sweep --resume` reruns it); `None` when there is no file or it was written whole
+    pub in_file: Option<bool>,
 }
 
 /// Outcomes of a campaign run by [`run_to`], with the error that stopped its output.
@@ -1026,6 +1030,11 @@ fn run_core(
     let last_flush = Mutex::new(Instant::now());
     let write_err: Mutex<Option<OutputError>> = Mutex::new(None);
     let output_failed = AtomicBool::new(false);
+    // Which results the file holds if a write fails: each variant's write gets a number
+    // (under the writer's lock), and each good flush records the last number it carried.
+    let writes = AtomicU64::new(0);
+    let flushed = AtomicU64::new(0);
+    let written_as: Vec<AtomicU64> = (0..nv).map(|_| AtomicU64::new(u64::MAX)).collect();
     let record_err = |e: OutputError| {
         let mut g = write_err.lock().unwrap_or_else(|p| p.into_inner());
         if g.is_none() {
@@ -1112,10 +1121,15 @@ fn run_core(
             for (n, x) in &derived {
                 r = r.and_then(|_| g.set_derived(n, row, *x));
             }
+            let seq = writes.fetch_add(1, Ordering::SeqCst) + 1;
+            written_as[v].store(seq, Ordering::SeqCst);
             // a flush rewrites the whole file: at most every few seconds
             let mut last = last_flush.lock().unwrap_or_else(|p| p.into_inner());
             if last.elapsed().as_secs_f64() > FLUSH_INTERVAL_S {
                 r = r.and_then(|_| g.flush());
+                if r.is_ok() {
+                    flushed.store(seq, Ordering::SeqCst);
+                }
                 *last = Instant::now();
             }
             if let Err(e) = r {
@@ -1147,6 +1161,7 @@ fn run_core(
             warnings,
             history: keep_history.then_some(hist),
             panicked: panicked.is_some(),
+            in_file: None,
         }
     };
     // One batch: its variants advance in lockstep on one worker, each round of their
@@ -1225,7 +1240,7 @@ fn run_core(
         .step_by(size)
         .map(|a| a..(a + size).min(nv))
         .collect();
-    let outcomes: Vec<Outcome> =
+    let mut outcomes: Vec<Outcome> =
         pool.install(|| batches.into_par_iter().flat_map_iter(run_batch).collect());
     let batch_counts = counts.into_inner().unwrap_or_else(|p| p.into_inner());
     let mut output_error = write_err.into_inner().unwrap_or_else(|p| p.into_inner());
@@ -1255,8 +1270,21 @@ fn run_core(
         let status = if stopped { "interrupted" } else { "complete" };
         // after an output error this last write usually fails too (the last good flush
         // stays); the first error is the one to report
-        if let Err(e) = w.finish(status) {
-            output_error.get_or_insert(e);
+        match w.finish(status) {
+            Ok(()) if output_error.is_none() => {}
+            Ok(()) => flushed.store(u64::MAX - 1, Ordering::SeqCst),
+            Err(e) => {
+                output_error.get_or_insert(e);
+            }
+        }
+        if output_error.is_some() {
+            let good = flushed.load(Ordering::SeqCst);
+            // the batches are collected in order: outcome v is variant v
+            for (o, seq) in outcomes.iter_mut().zip(&written_as) {
+                if o.state != VariantState::Pending {
+                    o.in_file = Some(seq.load(Ordering::SeqCst) <= good);
+                }
+            }
         }
     }
     Ok(CampaignRun {
@@ -1320,6 +1348,7 @@ fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool, why: &str) 
             values: vec![Vec::new(); m.sensors.len()],
         }),
         panicked: false,
+        in_file: None,
     }
 }
 

@@ -622,6 +622,13 @@ fn directory_removed_mid_sweep_stops_the_campaign_prints_the_summary_and_exits_5
         not_run > 1000,
         "no new variant starts after the failure: {not_run} not run"
     );
+    // the flush the test waited for held a completed variant
+    assert!(vs.iter().any(|x| x["in_file"] == true), "{v}");
+    assert!(
+        vs.iter()
+            .all(|x| x["in_file"].is_boolean() == (x["status"] != "not_run")),
+        "{v}"
+    );
 }
 
 #[test]
@@ -695,6 +702,28 @@ fn full_disk_mid_sweep_keeps_the_last_valid_flush_and_exits_5() {
     let (status, state) = rust_summary(&path);
     assert_eq!(status, "running", "the last flush that fitted");
     assert_eq!(state.len(), 2000);
+    // The JSON said "completed" also for variants that ran after the last flush that
+    // fitted, which the file lacks: `in_file` tells them apart, and agrees with the file.
+    let mut in_file = 0;
+    for x in v["variants"].as_array().unwrap() {
+        let i = x["index"].as_u64().unwrap() as usize;
+        match x["status"].as_str().unwrap() {
+            "not_run" => assert!(x["in_file"].is_null(), "{x}"),
+            _ => {
+                let held = x["in_file"].as_bool().unwrap_or_else(|| panic!("{x}"));
+                // the file's state codes: 0 pending, 1 running, 2 completed, 3 failed,
+                // 4 interrupted
+                let code = match x["status"].as_str().unwrap() {
+                    "completed" => 2,
+                    "failed" => 3,
+                    _ => 4,
+                };
+                assert_eq!(held, state[i] == code, "variant {i}: {x}");
+                in_file += usize::from(held);
+            }
+        }
+    }
+    assert_eq!(in_file, state.iter().filter(|&&s| s >= 2).count());
     if let Some(h) = h5py_summary(&path) {
         assert_eq!(h["state"].as_array().unwrap().len(), 2000);
     }

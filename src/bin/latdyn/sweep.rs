@@ -383,6 +383,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         .filter(|o| o.state == latdyn::output::VariantState::Failed)
         .count();
     let interrupted = stop.load(Ordering::SeqCst) && output_error.is_none();
+    let not_in_file = outcomes.iter().filter(|o| o.in_file == Some(false)).count();
     let (status, message) = match &output_error {
         Some(e) => (
             "output_failed",
@@ -390,7 +391,18 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                 "{e}; the campaign stopped (variants not run are marked not_run){}",
                 c.output
                     .as_ref()
-                    .map(|p| format!(", {} keeps its last flush", p.display()))
+                    .map(|p| format!(
+                        ", {} keeps its last flush{}",
+                        p.display(),
+                        if not_in_file > 0 {
+                            format!(
+                                ", which lacks {not_in_file} variant(s) that ran after it \
+                                 (\"in_file\": false; `sweep --resume` reruns them)"
+                            )
+                        } else {
+                            String::new()
+                        }
+                    ))
                     .unwrap_or_default()
             ),
         ),
@@ -497,6 +509,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "time_error_estimate": o.time_error_estimate,
                     "time_error_before_first_lock": o.time_error_before_first_lock,
                     "warnings": o.warnings,
+                    "in_file": o.in_file,
                     "sensors": sensors,
                     "derived": derived,
                 })
