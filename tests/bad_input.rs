@@ -57,6 +57,18 @@ const CASES: &[(&str, usize, &str, &str)] = &[
         "bodies[0].inertia",
         "inertia not positive definite",
     ),
+    (
+        "inertia_breaks_triangle_inequality.toml",
+        30,
+        "bodies[0].inertia",
+        "break the triangle inequality",
+    ),
+    (
+        "axes_not_perpendicular.toml",
+        31,
+        "bodies[0].axes",
+        "not perpendicular: 84.2894° between them",
+    ),
     ("dt_zero.toml", 29, "solver.dt", "must be > 0"),
     (
         "t_end_below_dt_min.toml",

@@ -1314,6 +1314,20 @@ impl Compiler<'_> {
                 "degenerate: x must be non-zero and y not parallel to x",
             ));
         }
+        // rounded table values are made exactly perpendicular; more than 1e-3 rad off
+        // is a mistyped axis, which would otherwise turn the body silently
+        let cos = (dot(x, y) / (nx * norm(y))).clamp(-1.0, 1.0);
+        if cos.asin().abs() > AXES_SLACK {
+            return Err(self.err(
+                axes.span(),
+                f,
+                format!(
+                    "x and y are not perpendicular: {:.4}° between them (at most \
+                     {AXES_SLACK:e} rad off 90° is accepted and made exact)",
+                    cos.acos().to_degrees()
+                ),
+            ));
+        }
         let (x, y) = (normalize(x), normalize(yp));
         Ok(from_cols(x, y, cross(x, y)))
     }
@@ -1364,6 +1378,27 @@ impl Compiler<'_> {
         let d3 = dot(col(&m, 0), cross(col(&m, 1), col(&m, 2)));
         if !(d1 > 0.0 && d2 > 0.0 && d3 > 0.0) {
             return Err(self.err(v.span(), f, "inertia not positive definite"));
+        }
+        // Every mass distribution has principal moments with a + b ≥ c (equal for a flat
+        // one): a tensor that breaks it is a typo, not a body. The slack admits values
+        // rounded to about six digits.
+        let [a, b, c] = sym3_eigenvalues(&m);
+        if c - (a + b) > 1e-6 * (a + b + c) {
+            // six significant digits, printed shortest (0.1, not 1.000000e-1)
+            let g = |x: f64| format!("{x:.5e}").parse::<f64>().unwrap_or(x);
+            return Err(self.err(
+                v.span(),
+                f,
+                format!(
+                    "inertia of no mass distribution: its principal moments {}, {}, {} \
+                     break the triangle inequality (the largest exceeds the sum of the \
+                     other two, {}; a flat body has them equal)",
+                    g(a),
+                    g(b),
+                    g(c),
+                    g(a + b)
+                ),
+            ));
         }
         Ok(m)
     }
@@ -2238,6 +2273,10 @@ pub fn accuracy_below_floor(target: f64, tol: f64) -> String {
 
 /// Largest accepted `[solver] tol` (see the check in the solver table).
 pub const MAX_TOL: f64 = 1e-2;
+
+/// How far from perpendicular a body's given x and y axes may be [rad]: a table's
+/// directions rounded to four digits are within about 1e-4.
+const AXES_SLACK: f64 = 1e-3;
 
 /// The global axis making the largest angle with `x` (ties: x before y before z).
 fn least_parallel_axis(x: Vec3) -> Vec3 {

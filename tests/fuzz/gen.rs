@@ -688,6 +688,12 @@ pub fn gen_model(r: &mut Rng, tame: bool) -> String {
                     gen_vec(r, &params, false, false),
                     gen_vec(r, &params, false, false)
                 );
+            } else if tame {
+                // principal moments of some body: c between |a − b| and a + b
+                let a = r.range(1, 20) as f64 / 10.0;
+                let b = r.range(1, 20) as f64 / 10.0;
+                let c = (a - b).abs() + 2.0 * a.min(b) * r.range(1, 10) as f64 / 10.0;
+                t += &format!("inertia = [{a}, {b}, {c}]\n");
             } else {
                 t += &format!("inertia = {}\n", gen_vec(r, &params, false, tame));
             }
