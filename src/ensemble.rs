@@ -1240,8 +1240,35 @@ fn run_core(
         .step_by(size)
         .map(|a| a..(a + size).min(nv))
         .collect();
-    let mut outcomes: Vec<Outcome> =
-        pool.install(|| batches.into_par_iter().flat_map_iter(run_batch).collect());
+    let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        pool.install(|| {
+            batches
+                .into_par_iter()
+                .flat_map_iter(run_batch)
+                .collect::<Vec<Outcome>>()
+        })
+    }));
+    let mut outcomes = match ran {
+        Ok(o) => o,
+        // A bug outside any one variant's run (those are caught in `drive`): the hook has
+        // printed it. The file gets every result written so far and is marked interrupted,
+        // not left `running`, so `sweep --resume` completes it; then the panic goes on.
+        Err(panic) => {
+            stop.store(true, Ordering::SeqCst);
+            if let Some(w) = writer {
+                let w = w.into_inner().unwrap_or_else(|p| p.into_inner());
+                let path = w.path().display().to_string();
+                match w.finish("interrupted") {
+                    Ok(()) => eprintln!(
+                        "the campaign stopped there; {path} holds every variant finished \
+                         before and is marked interrupted (`sweep --resume` completes it)"
+                    ),
+                    Err(e) => eprintln!("the campaign stopped there; {e}"),
+                }
+            }
+            std::panic::resume_unwind(panic);
+        }
+    };
     let batch_counts = counts.into_inner().unwrap_or_else(|p| p.into_inner());
     let mut output_error = write_err.into_inner().unwrap_or_else(|p| p.into_inner());
     // the campaign's own state: a signal during the verification leaves it complete

@@ -1020,6 +1020,43 @@ fn panics_become_one_clean_line_and_exit_70() {
     }
 }
 
+/// A panic in a sweep worker outside any variant's run (caught per variant elsewhere)
+/// left the file `running` with only its last periodic flush. Now the file gets every
+/// result written so far, is marked interrupted, and `sweep --resume` completes it.
+#[test]
+fn a_worker_panic_leaves_the_campaign_file_interrupted_and_resumable() {
+    let dir = scratch("worker_panic_file");
+    let path = dir.join("c.h5");
+    let args = [
+        "sweep",
+        "models/pendulum.toml",
+        "--vary",
+        "theta0=0.5:1:4",
+        "--set",
+        "t_end=0.01",
+        "--threads",
+        "1",
+        "-o",
+        s(&path),
+    ];
+    let mut c = latdyn(&args);
+    c.env("LATDYN_FAULT_PANIC", "worker");
+    let out = run_for(c, 60);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(70), "{err}");
+    assert!(err.contains("is marked interrupted"), "{err}");
+    let (status, state) = rust_summary(&path);
+    assert_eq!(status, "interrupted", "{err}");
+    // the worker panics after its first variant: that one is in the file
+    assert_eq!(state[0], 2, "{state:?}");
+    assert!(state.iter().any(|&x| x != 2), "{state:?}");
+    let mut args = args[..args.len() - 2].to_vec();
+    args.extend(["--resume", s(&path)]);
+    let out = run_for(latdyn(&args), 60);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(rust_summary(&path), ("complete".to_string(), vec![2; 4]));
+}
+
 /// `merge` had no signal handler: SIGINT was ignored (the merge ran to its end) and
 /// SIGTERM (Slurm's scancel) or SIGHUP killed it, leaving its temporary file and lock.
 /// Now it stops between stored chunks: exit 4, nothing written, no temporary, no lock.
