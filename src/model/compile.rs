@@ -354,7 +354,11 @@ impl Compiler<'_> {
         if v > 0.0 {
             Ok(v)
         } else {
-            Err(self.err(n.span(), field, format!("must be > 0, is {v}")))
+            Err(self.err(
+                n.span(),
+                field,
+                format!("must be > 0, is {}", super::value_text(v)),
+            ))
         }
     }
 
@@ -363,7 +367,11 @@ impl Compiler<'_> {
         if v >= 0.0 {
             Ok(v)
         } else {
-            Err(self.err(n.span(), field, format!("must be >= 0, is {v}")))
+            Err(self.err(
+                n.span(),
+                field,
+                format!("must be >= 0, is {}", super::value_text(v)),
+            ))
         }
     }
 
@@ -376,7 +384,7 @@ impl Compiler<'_> {
             return Err(self.err(
                 n.span(),
                 field,
-                format!("must be an integer >= {min}, is {v}"),
+                format!("must be an integer >= {min}, is {}", super::value_text(v)),
             ));
         }
         // beyond 2^53 not every integer is a float, and no count here is meant that large
@@ -384,7 +392,7 @@ impl Compiler<'_> {
             return Err(self.err(
                 n.span(),
                 field,
-                format!("must be an integer below 2^53, is {v}"),
+                format!("must be an integer below 2^53, is {}", super::value_text(v)),
             ));
         }
         Ok(v.round() as usize)
@@ -903,7 +911,10 @@ impl Compiler<'_> {
                 };
                 let bad = |msg: String| self.err(key.span(), &f, format!("{msg}{from}"));
                 if t.integer == Some(true) && v.fract() != 0.0 {
-                    return Err(bad(format!("must be a whole number, is {v}")));
+                    return Err(bad(format!(
+                        "must be a whole number, is {}",
+                        super::value_text(v)
+                    )));
                 }
                 if let Some(lo) = self.opt_num(&t.min, &format!("{f}.min"))? {
                     if v < lo {
@@ -1901,7 +1912,10 @@ impl Compiler<'_> {
                         return Err(self.err(
                             at_s.span(),
                             fa,
-                            format!("must be in [0, 1] (fraction of the beam), is {at}"),
+                            format!(
+                                "must be in [0, 1] (fraction of the beam), is {}",
+                                super::value_text(at)
+                            ),
                         ));
                     }
                     let elems = &beams[b].elements;
@@ -2112,7 +2126,7 @@ impl Compiler<'_> {
                 return Err(self.err(
                     v.span(),
                     f("rho_inf"),
-                    format!("must be in [0, 1], is {}", s.rho_inf),
+                    format!("must be in [0, 1], is {}", super::value_text(s.rho_inf)),
                 ));
             }
         }
@@ -2177,8 +2191,9 @@ impl Compiler<'_> {
                     v.span(),
                     f("accuracy"),
                     format!(
-                        "must be at most {MAX_ACCURACY}, is {a} (a relative error target; \
-                         beyond 10 % the numbers are not worth computing)"
+                        "must be at most {MAX_ACCURACY}, is {} (a relative error target; \
+                         beyond 10 % the numbers are not worth computing)",
+                        super::value_text(a)
                     ),
                 ));
             }
@@ -2193,7 +2208,11 @@ impl Compiler<'_> {
                 return Err(self.err(
                     v.span(),
                     f("dt_max"),
-                    format!("must be at least dt = {}, is {}", s.dt, s.dt_max),
+                    format!(
+                        "must be at least dt = {}, is {}",
+                        super::value_text(s.dt),
+                        super::value_text(s.dt_max)
+                    ),
                 ));
             }
         }

@@ -175,7 +175,11 @@ pub(crate) fn check_model(args: &ModelArgs) -> anyhow::Result<()> {
             );
         }
         if !m.params.is_empty() {
-            let p: Vec<String> = m.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
+            let p: Vec<String> = m
+                .params
+                .iter()
+                .map(|(n, v)| format!("{n}={}", latdyn::model::value_text(*v)))
+                .collect();
             s += &format!("  params    {}\n", p.join(" "));
         }
         s
