@@ -320,6 +320,24 @@ fn a_step_that_keeps_collapsing_stops_as_stalled_with_exit_3() {
 }
 
 #[test]
+fn a_load_no_step_can_carry_is_named_not_blamed_on_round_off() {
+    // 1e30 N at the cantilever's tip: no load step down to 1e-7 of it converges. The
+    // message said "worst residual 2.2e-279 ... a tolerance below the model's round-off
+    // cannot be reached" (the residual at λ = 0, which is no load at all).
+    let out = latdyn(&["statics", "models/cantilever.toml", "--set", "P=1e30"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    // as the other statics diagnoses (a model that cannot carry its loads)
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("Newton diverged from the start")
+            && err.contains("far beyond what it carries")
+            && !err.contains("round-off")
+            && err.contains("worst residual 1.192e23"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_tangent_too_ill_conditioned_to_factor_is_named_not_reported_as_a_stall_at_zero() {
     // 3 000 elements of the shipped cantilever: the LU's condition estimate passes its
     // limit, Newton cannot start, and the message only said "stalled at load factor 0

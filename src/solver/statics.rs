@@ -202,12 +202,12 @@ pub fn solve_until(
         }
         let used = rep.load_steps + rep.rejected_steps;
         if used >= MAX_LOAD_STEPS {
-            return Err(stall(model, &asm, &mut sys, s, lambda, &rep));
+            return Err(stall(model, &asm, &mut sys, s, (lambda, lambda), &rep));
         }
         if used >= window.0 + CREEP_WINDOW {
             let rate = (lambda - window.1) / (used - window.0) as f64;
             if rate * ((MAX_LOAD_STEPS - used) as f64) < 1.0 - lambda {
-                return Err(stall(model, &asm, &mut sys, s, lambda, &rep));
+                return Err(stall(model, &asm, &mut sys, s, (lambda, lambda), &rep));
             }
             window = (used, lambda);
         }
@@ -231,7 +231,15 @@ pub fn solve_until(
                     if let Some(e) = diagnose(model, s, lambda) {
                         return Err(e);
                     }
-                    return Err(stall(model, &asm, &mut sys, s, lambda, &rep));
+                    // with no step carried, the residual of the last one tried, which
+                    // Newton could not reduce (at λ = 0 it is zero and says nothing);
+                    // after some, the one left at the last equilibrium (round-off)
+                    let tried = if rep.load_steps == 0 {
+                        (lambda + 2.0 * dl).min(1.0)
+                    } else {
+                        lambda
+                    };
+                    return Err(stall(model, &asm, &mut sys, s, (lambda, tried), &rep));
                 }
             }
         }
@@ -284,11 +292,11 @@ fn stall(
     asm: &Assembler,
     sys: &mut NewtonSystem,
     s: &mut State,
-    lambda: f64,
+    (lambda, tried): (f64, f64),
     rep: &StaticsReport,
 ) -> StaticsError {
     joint::update_kinematics(model, s);
-    let target = lambda.max(f64::MIN_POSITIVE);
+    let target = tried.max(f64::MIN_POSITIVE);
     // a tangent that cannot be factored stops Newton before its first iteration; the
     // residual then says nothing of why (a mesh of 3 000 elements of the shipped
     // cantilever: condition above the LU's limit, "stalled ... residual 2.2e-308")
@@ -303,6 +311,14 @@ fn stall(
              (many elements, or EA far above EI/L²): fewer elements may solve it",
             crate::linalg::SINGULAR_COND_LIMIT,
             model.n_eq
+        ),
+        // nothing carried at all: round-off is not the reason (a gravity of 1e30 read
+        // "residual 5.6e-279 ... a tolerance below the model's round-off")
+        Ok(_) if lambda == 0.0 && rep.load_steps == 0 => format!(
+            "; Newton diverged from the start at every load step down to {MIN_LOAD_STEP:e} \
+             of the load: even that much deforms the structure too far for Newton to \
+             converge from its reference shape, so the loads (or gravity) are likely far \
+             beyond what it carries, or a stiffness far too small; check their magnitudes"
         ),
         Ok(_) => "; a tolerance below the model's round-off cannot be reached".to_string(),
     };
