@@ -269,6 +269,9 @@ fn m_orthonormal(m: &[f64], n: usize, y: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec
     (xs, mxs)
 }
 
+/// A Ritz pair of the shift-invert operator A = (K − σM)⁻¹M: (θ, z, ‖A z − θ z‖_M, A z).
+type Ritz = (f64, Vec<f64>, f64, Vec<f64>);
+
 /// Lowest `count` eigenpairs of K φ = ω² M φ for row-major n×n K (symmetric up to
 /// round-off) and M (symmetric positive semi-definite).
 pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Modes, ModesError> {
@@ -418,12 +421,12 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
     }
     let lu = lu.ok_or(LinalgError::Singular { pivot: 0 })?;
     let (mut x, mut mx) = m_orthonormal(&m, n, &start);
-    let mut ritz: Vec<(f64, Vec<f64>, f64, Vec<f64>)> = Vec::new();
+    let mut ritz: Vec<Ritz> = Vec::new();
     let mut prev_worst = f64::INFINITY;
     // the iterate with the smallest worst residual: past the round-off floor of a wide
     // subspace (its top modes' residuals stay near 1e-6) further sweeps only stir the
     // low modes (a cantilever's `--count 70` drifted 2.7e-4 off in 100 of them)
-    let mut best: Option<(f64, Vec<(f64, Vec<f64>, f64, Vec<f64>)>)> = None;
+    let mut best: Option<(f64, Vec<Ritz>)> = None;
     let mut since_best = 0;
     for it in 0..100 {
         // Y = (K − σM)⁻¹ M X
