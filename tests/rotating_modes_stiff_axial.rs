@@ -137,3 +137,49 @@ fn a_small_hub_speed_changes_the_modes_continuously() {
     assert!(rel(slow, rest) < 1e-4, "{slow} vs {rest}");
     assert!(rel(faster, rest) < 1e-4, "{faster} vs {rest}");
 }
+
+/// Rotating-frame modes depend on Ω̄ = Ω √(ρA L⁴/EI), not on Ω in rad/s. The eigen-solve
+/// used the unshifted first-order form, whose round-off is absolute on the scale of the
+/// stiffest mode's ω²; with EI = 1e6 (Ω = 1000 Ω̄) and 40 elements the first frequencies
+/// read 228.6 and 286.3 Hz with damping ratios of ±0.95 for 563.9 (lag) and 585.9 Hz
+/// (flap), with no warning. Reference: references.md §"rotating cantilever" (Ω̄ = 1:
+/// 3.6816, 22.1810; Ω̄ = 10: 11.2023, 33.6404; the flap modes, second and fourth of the
+/// list, each above its lag mode), for an inextensible beam: EA·L²/EI = 1e6 here
+/// (centrifugal strain 5e-5 at Ω̄ = 10; at 1e4 the second flap mode read 1.1e-3 low).
+/// Tolerance 5e-4, measured below; damping ratios of an undamped gyroscopic system are
+/// round-off.
+#[test]
+fn rotating_frame_modes_depend_on_the_nondimensional_speed_not_on_rad_per_s() {
+    for (obar, flap) in [(1.0, [3.6816, 22.1810]), (10.0, [11.2023, 33.6404])] {
+        for n in [20.0, 40.0] {
+            let m = shipped(
+                "rotating_cantilever.toml",
+                &[
+                    ("EI", 1e6),
+                    ("GJ", 8e5),
+                    ("EA", 1e12),
+                    ("elements", n),
+                    ("omega", 1000.0 * obar),
+                ],
+            );
+            let rm = rotating_modes(&m, find_spin(&m).unwrap()).unwrap();
+            assert!(rm.steady_converged, "steady state not found");
+            for (k, wbar) in [(1, flap[0]), (3, flap[1])] {
+                let want = wbar * 1000.0 / (2.0 * std::f64::consts::PI);
+                let got = rm.frequencies_hz[k];
+                eprintln!(
+                    "Ω̄ {obar}, {n} elements: mode {}: {got:.4} Hz (reference {want:.4})",
+                    k + 1
+                );
+                assert!(
+                    rel(got, want) < 5e-4,
+                    "Ω̄ {obar}, {n} elements, mode {}: {got} vs {want}",
+                    k + 1
+                );
+            }
+            for z in &rm.damping[..4] {
+                assert!(z.abs() < 1e-8, "Ω̄ {obar}, {n} elements: damping ratio {z}");
+            }
+        }
+    }
+}
