@@ -49,6 +49,16 @@
 //!    range of A. The probe costs a 2-column solve plus one O(nnz) pass over the values
 //!    (fused with the finiteness check); see the timings below.
 //!
+//! **Units.** A model's unknowns come in units (metres, radians) whose choice scales
+//! rows and columns: a 10 µm beam element's translation rows are 1e10 times its rotation
+//! rows in metres. With [`SparseLu::set_unit_groups`] (the solver's Newton systems put
+//! translations in one group, angles in another) the matrix factored is B = D A D, D
+//! constant on each group, a power of two near 1/√(the group's largest diagonal entry):
+//! the pivots are chosen and the condition measured in consistent units, and a solve
+//! scales its right-hand side and solution back. Without groups D = I (the calibration
+//! above). What no choice of units removes, a stiffness disparity within one unit (EA
+//! far above EI/L², whose axial round-off the residual feels), still counts.
+//!
 //! On failure the offending DOF is reported: the index of the largest entry of X, which
 //! is dominated by the (near-)null vector; if that solution is non-finite (an exactly zero
 //! pivot), one extra factorisation of A + √ε·max|A|·I and solve (error path only,
@@ -558,6 +568,14 @@ pub struct SparseLu {
     solve_mem: Mutex<MemBuffer>,
     /// probe solve (n×2) / row-sum (n) workspace
     probe: Vec<f64>,
+    /// D = diag(1/scale), constant on each unit group (all 1 without groups)
+    scale: Vec<f64>,
+    /// each unknown's unit group (empty: one group, the unscaled condition)
+    groups: Vec<usize>,
+    /// per group: the largest |diagonal entry|, then (after the groups) the largest row sum
+    group_max: Vec<f64>,
+    /// D A D, the matrix factored when there are unit groups (sized by `set_unit_groups`)
+    scaled_values: Vec<f64>,
     /// the factors of [`LuVariant::Dense`] (empty for the sparse kernels)
     dense: DenseFactor,
     factored: bool,
@@ -668,6 +686,7 @@ impl SparseLu {
         let factor_mem = MemBuffer::new(symbolic.factor_req);
         let solve_mem = Mutex::new(MemBuffer::new(symbolic.solve_req));
         let probe = vec![0.0; 2 * symbolic.n];
+        let scale = vec![1.0; symbolic.n];
         let dense = if symbolic.variant == LuVariant::Dense {
             DenseFactor::new(&symbolic)
         } else {
@@ -679,9 +698,77 @@ impl SparseLu {
             factor_mem,
             solve_mem,
             probe,
+            scale,
+            groups: Vec::new(),
+            group_max: vec![0.0; 2],
+            scaled_values: Vec::new(),
             dense,
             factored: false,
         }
+    }
+
+    /// Unknowns in one group share one unit (the translations of a model are in metres,
+    /// its angles in radians): the singularity probe measures the condition with each
+    /// group scaled by the square root of its largest diagonal entry, so that a change
+    /// of units (a 10 µm element, a model in millimetres) does not change the verdict,
+    /// while a stiffness disparity within one unit (EA far above EI/L², which no
+    /// rescaling of the units removes and which the residual's round-off feels) still
+    /// counts. `groups[i]` is unknown i's group; without a call, all unknowns are one
+    /// group (the unscaled condition).
+    pub fn set_unit_groups(&mut self, groups: &[usize]) -> Result<(), LinalgError> {
+        if groups.len() != self.symbolic.n {
+            return Err(LinalgError::Other(format!(
+                "SparseLu::set_unit_groups: {} groups for {} unknowns",
+                groups.len(),
+                self.symbolic.n
+            )));
+        }
+        self.groups = groups.to_vec();
+        self.scaled_values = vec![0.0; self.symbolic.nnz()];
+        self.group_max = vec![0.0; 2 * groups.iter().max().map_or(1, |g| g + 1)];
+        Ok(())
+    }
+
+    /// `scale` from A's `values`: per group, the power of two nearest the square root of
+    /// its largest |diagonal entry| (a row sum of a small-unit group is dominated by
+    /// its couplings to large-unit groups and would not recover its unit), or of its
+    /// largest row sum for a group without a diagonal.
+    fn set_scale(&mut self, values: &[f64]) {
+        let sym = &*self.symbolic;
+        let (cp, ri) = (sym.structure.col_ptr(), sym.structure.row_idx());
+        let ng = self.group_max.len() / 2;
+        self.group_max.fill(0.0);
+        for j in 0..sym.n {
+            let g = self.groups[j];
+            let mut row = 0.0;
+            for k in cp[j]..cp[j + 1] {
+                // A is square and its pattern structurally symmetric enough: the column
+                // sum stands in for the row sum of the fallback
+                row += values[k].abs();
+                if ri[k] == j {
+                    self.group_max[g] = self.group_max[g].max(values[k].abs());
+                }
+            }
+            self.group_max[ng + g] = self.group_max[ng + g].max(row);
+        }
+        for (s, &g) in self.scale.iter_mut().zip(&self.groups) {
+            let unit = if self.group_max[g] > 0.0 {
+                self.group_max[g]
+            } else {
+                self.group_max[ng + g]
+            };
+            let e = unit.sqrt().log2().round();
+            *s = if e.is_finite() && e.abs() < 1000.0 {
+                2f64.powi(e as i32)
+            } else {
+                1.0
+            };
+        }
+    }
+
+    /// The unit groups set by [`SparseLu::set_unit_groups`] (empty: one group).
+    pub fn unit_groups(&self) -> &[usize] {
+        &self.groups
     }
 
     /// The shared symbolic analysis (clone the `Arc` to build more factorisations).
@@ -708,7 +795,8 @@ impl SparseLu {
     /// previous factorisation is discarded.
     pub fn factor(&mut self, values: &[f64]) -> Result<(), LinalgError> {
         self.factored = false;
-        let sym = &*self.symbolic;
+        let symbolic = Arc::clone(&self.symbolic);
+        let sym = &*symbolic;
         let n = sym.n;
         if values.len() != sym.nnz() {
             return Err(LinalgError::Other(format!(
@@ -741,7 +829,6 @@ impl SparseLu {
             return Err(LinalgError::NonFinite);
         }
         let zero_row = row_abs.iter().position(|&r| r == 0.0);
-        let a_norm_inf = row_abs.iter().fold(0.0f64, |m, &r| m.max(r));
         if let Some(pivot) = zero_col.into_iter().chain(zero_row).min() {
             return Err(LinalgError::Singular { pivot });
         }
@@ -749,9 +836,31 @@ impl SparseLu {
             self.factored = true;
             return Ok(());
         }
+        // with unit groups (see `set_unit_groups`) the factored matrix is B = D A D,
+        // D constant on each group and a power of two (B's entries keep A's mantissas):
+        // the pivots are chosen and the condition measured in consistent units
+        let scaled = !self.groups.is_empty();
+        if scaled {
+            self.set_scale(values);
+            let (scale, b) = (&self.scale, &mut self.scaled_values);
+            for j in 0..n {
+                for k in cp[j]..cp[j + 1] {
+                    b[k] = values[k] / (scale[ri[k]] * scale[j]);
+                }
+            }
+        }
+        let a: &[f64] = if scaled { &self.scaled_values } else { values };
+        let row_abs = &mut self.probe[..n];
+        row_abs.fill(0.0);
+        for j in 0..n {
+            for k in cp[j]..cp[j + 1] {
+                row_abs[ri[k]] += a[k].abs();
+            }
+        }
+        let a_norm_inf = row_abs.iter().fold(0.0f64, |m, &r| m.max(r));
 
         let verdict = if sym.variant == LuVariant::Dense {
-            match self.dense.factor(&sym.structure, values) {
+            match self.dense.factor(&sym.structure, a) {
                 Err(col) => Probe::NonFinite(col),
                 Ok(()) => {
                     self.probe.copy_from_slice(&sym.probe_x);
@@ -769,10 +878,18 @@ impl SparseLu {
                 &mut self.numeric,
                 &mut self.factor_mem,
                 &mut self.probe,
-                values,
+                a,
                 a_norm_inf,
             )
         };
+        if let Probe::NonFinite(first) = verdict {
+            let b = std::mem::take(&mut self.scaled_values);
+            let pivot = self
+                .locate_null_dof(if scaled { &b } else { values })
+                .unwrap_or(first);
+            self.scaled_values = b;
+            return Err(LinalgError::Singular { pivot });
+        }
         match verdict {
             Probe::Ok => {
                 self.factored = true;
@@ -781,10 +898,7 @@ impl SparseLu {
             Probe::Structural(pivot) | Probe::Singular(pivot) => {
                 Err(LinalgError::Singular { pivot })
             }
-            Probe::NonFinite(first) => {
-                let pivot = self.locate_null_dof(values).unwrap_or(first);
-                Err(LinalgError::Singular { pivot })
-            }
+            Probe::NonFinite(first) => Err(LinalgError::Singular { pivot: first }),
             Probe::Failed(msg) => Err(LinalgError::Other(msg)),
         }
     }
@@ -868,10 +982,18 @@ impl SparseLu {
                 MemStack::new(mem),
             )
         };
+        // B = D A D is factored: A x = b is B (D⁻¹x) = D b, D = diag(1/scale)
+        let scaled = !self.groups.is_empty();
+        if scaled {
+            rhs.iter_mut().zip(&self.scale).for_each(|(b, s)| *b /= s);
+        }
         match self.solve_mem.try_lock() {
             Ok(mut mem) => run(&mut mem, rhs),
             Err(TryLockError::Poisoned(p)) => run(&mut p.into_inner(), rhs),
             Err(TryLockError::WouldBlock) => run(&mut MemBuffer::new(self.symbolic.solve_req), rhs),
+        }
+        if scaled {
+            rhs.iter_mut().zip(&self.scale).for_each(|(z, s)| *z /= s);
         }
     }
 
@@ -1875,6 +1997,74 @@ mod tests {
                         rel_err(&b, &x) < 1e-4,
                         "{variant:?} n={n}: {}",
                         rel_err(&b, &x)
+                    );
+                }
+            }
+        }
+    }
+
+    /// A change of units scales the rows and columns of each unit group (D A D); the
+    /// verdict must not change with it. Before the probe measured D A D, a 1 mm
+    /// cantilever of 100 elements (translation rows ~1e17 beside rotation rows ~1e7) was
+    /// refused as a mechanism.
+    #[test]
+    fn the_singularity_verdict_does_not_change_with_the_units() {
+        let mut rng = Lcg(77);
+        for variant in VARIANTS {
+            for &n in &[10usize, 60, 300] {
+                for unsym in [false, true] {
+                    let (p, v) = spring_network(&mut rng, n, unsym);
+                    // three units, scattered over the unknowns, scaled 2^-17, 1, 2^17
+                    // (~1e∓5; powers of two leave every entry's mantissa as it was, so
+                    // the scaled singular matrix is exactly as singular)
+                    let groups: Vec<usize> = (0..n).map(|i| (i * 7) % 3).collect();
+                    let d: Vec<f64> = groups
+                        .iter()
+                        .map(|&g| 2f64.powi(17 * (g as i32 - 1)))
+                        .collect();
+                    let scaled = |v: &[f64]| -> Vec<f64> {
+                        let mut w = v.to_vec();
+                        for j in 0..n {
+                            for i in 0..n {
+                                if let Some(k) = p.slot(i, j) {
+                                    w[k] = v[k] * d[i] * d[j];
+                                }
+                            }
+                        }
+                        w
+                    };
+                    let mut lu = SparseLu::from_symbolic(Arc::new(
+                        SparseLuSymbolic::with_variant(&p, variant).unwrap(),
+                    ));
+                    lu.set_unit_groups(&groups).unwrap();
+                    let r = lu.factor(&scaled(&v));
+                    assert!(
+                        matches!(r, Err(LinalgError::Singular { .. })),
+                        "{variant:?} n={n} unsym={unsym}: the scaled singular network: {r:?}"
+                    );
+                    let amax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                    let mut v2 = v.clone();
+                    for i in 0..n {
+                        v2[p.slot(i, i).unwrap()] += 1e-8 * amax;
+                    }
+                    let a = scaled(&v2);
+                    lu.factor(&a).unwrap_or_else(|e| {
+                        panic!("{variant:?} n={n} unsym={unsym}: κ(DAD) ≈ 1e8 refused: {e:?}")
+                    });
+                    // the solution is accurate componentwise to ~κ(DAD)ε in D's units
+                    let x: Vec<f64> = (0..n).map(|i| ((i % 3) as f64 - 1.5) / d[i]).collect();
+                    let mut b = vec![0.0; n];
+                    p.mul_vec(&a, &x, &mut b);
+                    lu.try_solve_in_place(&mut b).unwrap();
+                    let worst = (0..n)
+                        .map(|i| ((b[i] - x[i]) * d[i]).abs())
+                        .fold(0.0f64, f64::max);
+                    assert!(worst < 1e-5, "{variant:?} n={n} unsym={unsym}: {worst:e}");
+                    // one group (the default) is the unscaled condition, κ ≈ 1e28 here
+                    lu.set_unit_groups(&vec![0; n]).unwrap();
+                    assert!(
+                        matches!(lu.factor(&a), Err(LinalgError::Singular { .. })),
+                        "{variant:?} n={n} unsym={unsym}: one unit group accepted κ ≈ 1e28"
                     );
                 }
             }

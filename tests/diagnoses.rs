@@ -339,14 +339,15 @@ fn a_load_no_step_can_carry_is_named_not_blamed_on_round_off() {
 
 #[test]
 fn a_tangent_too_ill_conditioned_to_factor_is_named_not_reported_as_a_stall_at_zero() {
-    // 3 000 elements of the shipped cantilever: the LU's condition estimate passes its
-    // limit, Newton cannot start, and the message only said "stalled at load factor 0
-    // after 0 Newton iterations (worst residual 2.2e-308)"
+    // EA = 1e30 on the shipped cantilever (EA h²/EI = 1.6e26): the LU's condition
+    // estimate in consistent units passes its limit, Newton cannot start, and the
+    // message only said "stalled at load factor 0 after 0 Newton iterations (worst
+    // residual 2.2e-308)"
     let out = latdyn(&[
         "statics",
         "models/cantilever.toml",
         "--set",
-        "elements=3000",
+        "EA=1e30",
         "--set",
         "P=1",
     ]);
@@ -354,8 +355,8 @@ fn a_tangent_too_ill_conditioned_to_factor_is_named_not_reported_as_a_stall_at_z
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
         err.contains("the tangent stiffness could not be factored")
-            && err.contains("18000 coordinates")
-            && err.contains("fewer elements"),
+            && err.contains("48 coordinates")
+            && err.contains("EA far above EI/L²"),
         "{err}"
     );
 }
@@ -365,14 +366,21 @@ fn a_step_matrix_too_ill_conditioned_to_factor_is_named_not_reported_as_a_zero_r
     // the same mesh under `run`: every step size fails at its factorization, before a
     // Newton iteration, and the message only said "did not converge with the step cut to
     // 9.5e-10 s (worst residual 0)"
-    let out = latdyn(&["run", "models/cantilever.toml", "--set", "elements=3000"]);
+    let out = latdyn(&[
+        "run",
+        "models/cantilever.toml",
+        "--set",
+        "EA=1e30",
+        "--set",
+        "P=1",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(3), "{err}");
     assert!(
         err.contains("the step's matrix")
             && err.contains("could not be factored at any step size")
-            && err.contains("18000 coordinates")
-            && err.contains("fewer elements"),
+            && err.contains("48 coordinates")
+            && err.contains("EA far above EI/L²"),
         "{err}"
     );
     // a model that factors but does not converge keeps the plain message

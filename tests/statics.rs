@@ -268,3 +268,47 @@ fn forces_that_overflow_are_an_error_not_an_equilibrium() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("the forces are not finite"), "{err}");
 }
+
+/// The same cantilever in any length unit: 100 elements of a 1 mm beam (geometrically
+/// similar to the 1 m one: EI ∝ L⁴, EA and ρA ∝ L², P ∝ EI/L²) have translation rows
+/// 1e10 times their rotation rows in metres, and the LU's singularity probe, which
+/// measured the condition without units, refused the model as a mechanism ("free
+/// motions: tip.rz, ..."). The probe now works with translations and angles each in
+/// their own unit: the answer is the metre beam's, scaled, to near round-off.
+#[test]
+fn a_millimetre_cantilever_of_fine_elements_solves_as_its_metre_twin() {
+    let solve = |l: f64| -> (f64, f64) {
+        let s2 = l * l;
+        let s4 = s2 * s2;
+        let args: Vec<String> = [
+            format!("L={l:e}"),
+            "elements=100".into(),
+            format!("EI={:e}", 100.0 * s4),
+            format!("GJ={:e}", 80.0 * s4),
+            format!("EA={:e}", 1e6 * s2),
+            format!("rhoA={:e}", s2),
+            format!("P={:e}", 1.0 * s2),
+        ]
+        .iter()
+        .flat_map(|a| ["--set".to_string(), a.clone()])
+        .collect();
+        let mut cmd = vec!["statics", "models/cantilever.toml", "--json"];
+        cmd.extend(args.iter().map(String::as_str));
+        let v = latdyn_json(&cmd);
+        (
+            v["sensors"]["tip"][2].as_f64().unwrap(),
+            v["sensors"]["root_moment"][0].as_f64().unwrap(),
+        )
+    };
+    let (w1, m1) = solve(1.0);
+    // P L³/3EI = 1/300 and -P L, small-deflection closed form to 1e-4
+    assert!(rel(w1, 1.0 / 300.0) < 1e-4, "{w1}");
+    assert!(rel(m1, -1.0) < 1e-4, "{m1}");
+    for l in [1e-3, 1e-5] {
+        let (w, m) = solve(l);
+        // lengths scale as L, moments as P L ∝ L³; round-off of a 100-element solve
+        // (condition ~1e9 in consistent units) is well inside 1e-6
+        assert!(rel(w / l, w1) < 1e-6, "L = {l:e}: w = {w:e}");
+        assert!(rel(m / (l * l * l), m1) < 1e-6, "L = {l:e}: M = {m:e}");
+    }
+}

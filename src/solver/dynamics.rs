@@ -1574,7 +1574,7 @@ impl<'m> Integrator<'m> {
             .await;
         let mut m = self.sys.values.clone();
         self.sys.pattern.identity_outside(&mut m, &solve);
-        let mut lu = crate::linalg::SparseLu::from_symbolic(self.sys.symbolic().clone());
+        let mut lu = self.sys.new_lu();
         lu.factor(&m)
             .map_err(|e| format!("the mass matrix cannot be factored: {e}"))?;
         let k = locking.len();

@@ -209,10 +209,14 @@ impl NewtonSystem {
             ps.entries.push((i, i));
         }
         let pattern = SparsePattern::new(model.n_eq, &ps.entries);
-        let lu = match symbolic {
+        let mut lu = match symbolic {
             Some(sym) if sym.analyses(&pattern) => SparseLu::from_symbolic(Arc::clone(sym)),
             _ => SparseLu::new(&pattern)?,
         };
+        // translations in one unit, angles in another: the LU works in consistent units,
+        // so a model in millimetres or of 10 µm elements factors as the same in metres
+        let groups: Vec<usize> = model.rot_eq.iter().map(|&r| usize::from(r)).collect();
+        lu.set_unit_groups(&groups)?;
         Ok(NewtonSystem {
             values: vec![0.0; pattern.nnz()],
             slot_cache: Vec::new(),
@@ -304,6 +308,14 @@ impl NewtonSystem {
     /// The symbolic factorization, for sharing with other variants of the same pattern.
     pub fn symbolic(&self) -> &Arc<SparseLuSymbolic> {
         self.lu.symbolic()
+    }
+
+    /// A factorisation of another matrix on this pattern, in the same unit groups.
+    pub fn new_lu(&self) -> SparseLu {
+        let mut lu = SparseLu::from_symbolic(Arc::clone(self.lu.symbolic()));
+        lu.set_unit_groups(self.lu.unit_groups())
+            .expect("the groups were checked against this pattern");
+        lu
     }
 
     /// Solve J x = b in place with the last factorization (path following's tangent

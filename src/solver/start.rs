@@ -30,7 +30,6 @@
 use super::linear::NewtonSystem;
 use crate::assembly::{Assembler, Coeffs};
 use crate::joint::{self, State};
-use crate::linalg::SparseLu;
 use crate::model::{ChainLink, DofMode, Model};
 
 /// ε as a fraction of the mean of the stiffness-to-weight ratios on the diagonal: K + ε W
@@ -197,7 +196,7 @@ async fn consistent_velocity(
             a[slot] += eps * weights[e];
         }
     }
-    let mut lu = SparseLu::from_symbolic(sys.symbolic().clone());
+    let mut lu = sys.new_lu();
     lu.factor(&a).map_err(|e| {
         format!(
             "the stiffness of the coordinates without an initial rate cannot be factored \
