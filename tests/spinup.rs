@@ -151,8 +151,14 @@ fn a_step_that_does_not_divide_the_output_interval_keeps_the_spin_up_stable() {
         stats.energy_growth
     );
     assert!((coarse - fine).abs() < 1e-2 * fine, "{coarse} vs {fine}");
+    // The alternation's instability grew the energy by 39 %. At this step Newton starts
+    // 1.4 force scales off after the spin-up and some steps are cut (a diverging
+    // iterate's refreshed tangent is singular): 4 to 7 cuts, which ones depending on
+    // round-off (the LU's unit scaling moved them), and with them 0 or 0.37 % growth,
+    // warned. The bound is 39 times below the alternation's growth and 2.7 times above
+    // the cut steps' 0.37 %.
     assert!(
-        stats.energy_growth.unwrap() < 1e-3,
+        stats.energy_growth.unwrap() < 1e-2,
         "{:?}",
         stats.energy_growth
     );

@@ -488,20 +488,33 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
         ritz = b;
     }
 
-    // 4. eigenvalues, error estimates, classification
-    let gamma = n as f64 * f64::EPSILON;
-    let mut out: Vec<(f64, Vec<f64>, f64)> = ritz
-        .iter()
-        .filter(|r| r.0 != 0.0)
-        .map(|(th, z, snorm, _)| {
-            let lam = sigma + 1.0 / th;
-            let err = snorm / (th * th)
-                + gamma * lu.abs_form(z)
-                + DATA_ROUNDOFF * (abs_form(&k, n, z) + lam.abs() * abs_form(&m, n, z))
-                + 4.0 * f64::EPSILON * (sigma.abs() + lam.abs());
-            (lam, z.clone(), err)
-        })
-        .collect();
+    // 4. eigenvalues, error estimates, classification. Each eigenvalue is the Rayleigh
+    // quotient of the pencil itself at its Ritz vector, bounded through the explicit
+    // residual r = K z − λ M z: with e = (K − σM)⁻¹ r, the operator (K − σM)⁻¹M has the
+    // residual −e/(λ − σ) at z, so λ is within |λ − σ|·‖e‖_M of an eigenvalue. The
+    // value σ + 1/θ and its residual through the factors carried the factors' round-off
+    // (γ_n |L||U|, a bound 20 times the true error: a 100-element cantilever's first
+    // mode was warned at 2.9e-5 as ill-conditioned); the solve's round-off only
+    // perturbs e, a correction already small.
+    let mut out: Vec<(f64, Vec<f64>, f64)> = Vec::new();
+    let (mut kz, mut mz) = (vec![0.0; n], vec![0.0; n]);
+    for (_, z, _, _) in ritz.iter().filter(|r| r.0 != 0.0) {
+        matvec(&kp, n, z, &mut kz);
+        matvec(&m, n, z, &mut mz);
+        let zmz = dot(z, &mz);
+        let lam = dot(z, &kz) / zmz;
+        if !lam.is_finite() {
+            continue;
+        }
+        let mut e: Vec<f64> = kz.iter().zip(&mz).map(|(a, b)| a - lam * b).collect();
+        lu.solve(&mut e)?;
+        matvec(&m, n, &e, &mut mz);
+        let resid = (lam - sigma).abs() * (dot(&e, &mz).max(0.0) / zmz).sqrt();
+        let err = resid
+            + DATA_ROUNDOFF * (abs_form(&k, n, z) + lam.abs() * abs_form(&m, n, z)) / zmz
+            + 4.0 * f64::EPSILON * (sigma.abs() + lam.abs());
+        out.push((lam, z.clone(), err));
+    }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));
     let two_pi = 2.0 * std::f64::consts::PI;
     let mut res = Modes {
