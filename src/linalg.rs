@@ -708,13 +708,13 @@ impl SparseLu {
     }
 
     /// Unknowns in one group share one unit (the translations of a model are in metres,
-    /// its angles in radians): the singularity probe measures the condition with each
-    /// group scaled by the square root of its largest diagonal entry, so that a change
-    /// of units (a 10 µm element, a model in millimetres) does not change the verdict,
-    /// while a stiffness disparity within one unit (EA far above EI/L², which no
-    /// rescaling of the units removes and which the residual's round-off feels) still
-    /// counts. `groups[i]` is unknown i's group; without a call, all unknowns are one
-    /// group (the unscaled condition).
+    /// its angles in radians): [`SparseLu::factor`] then factors D A D, each group scaled
+    /// by a power of two near 1/√(its largest diagonal entry), so that a change of units
+    /// (a 10 µm element, a model in millimetres) changes neither the pivots nor the
+    /// singularity verdict, while a stiffness disparity within one unit (EA far above
+    /// EI/L², which no rescaling of the units removes and which the residual's round-off
+    /// feels) still counts. `groups[i]` is unknown i's group; without a call, A is
+    /// factored as it is.
     pub fn set_unit_groups(&mut self, groups: &[usize]) -> Result<(), LinalgError> {
         if groups.len() != self.symbolic.n {
             return Err(LinalgError::Other(format!(
@@ -729,27 +729,19 @@ impl SparseLu {
         Ok(())
     }
 
-    /// `scale` from A's `values`: per group, the power of two nearest the square root of
-    /// its largest |diagonal entry| (a row sum of a small-unit group is dominated by
-    /// its couplings to large-unit groups and would not recover its unit), or of its
-    /// largest row sum for a group without a diagonal.
-    fn set_scale(&mut self, values: &[f64]) {
-        let sym = &*self.symbolic;
-        let (cp, ri) = (sym.structure.col_ptr(), sym.structure.row_idx());
+    /// `scale` from A's `values` and row sums `row_abs`: per group, the power of two
+    /// nearest the square root of its largest |diagonal entry| (a row sum of a
+    /// small-unit group is dominated by its couplings to large-unit groups and would not
+    /// recover its unit), or of its largest row sum for a group without a diagonal.
+    fn set_scale(&mut self, values: &[f64], row_abs: &[f64]) {
+        let structure = &self.symbolic.structure;
         let ng = self.group_max.len() / 2;
         self.group_max.fill(0.0);
-        for j in 0..sym.n {
-            let g = self.groups[j];
-            let mut row = 0.0;
-            for k in cp[j]..cp[j + 1] {
-                // A is square and its pattern structurally symmetric enough: the column
-                // sum stands in for the row sum of the fallback
-                row += values[k].abs();
-                if ri[k] == j {
-                    self.group_max[g] = self.group_max[g].max(values[k].abs());
-                }
+        for (j, &g) in self.groups.iter().enumerate() {
+            if let Some(k) = csc_slot(structure, j, j) {
+                self.group_max[g] = self.group_max[g].max(values[k].abs());
             }
-            self.group_max[ng + g] = self.group_max[ng + g].max(row);
+            self.group_max[ng + g] = self.group_max[ng + g].max(row_abs[j]);
         }
         for (s, &g) in self.scale.iter_mut().zip(&self.groups) {
             let unit = if self.group_max[g] > 0.0 {
@@ -841,23 +833,20 @@ impl SparseLu {
         // the pivots are chosen and the condition measured in consistent units
         let scaled = !self.groups.is_empty();
         if scaled {
-            self.set_scale(values);
-            let (scale, b) = (&self.scale, &mut self.scaled_values);
+            let row_abs = std::mem::take(&mut self.probe);
+            self.set_scale(values, &row_abs[..n]);
+            self.probe = row_abs;
+            let (scale, b, b_row) = (&self.scale, &mut self.scaled_values, &mut self.probe);
+            b_row[..n].fill(0.0);
             for j in 0..n {
                 for k in cp[j]..cp[j + 1] {
                     b[k] = values[k] / (scale[ri[k]] * scale[j]);
+                    b_row[ri[k]] += b[k].abs();
                 }
             }
         }
+        let a_norm_inf = self.probe[..n].iter().fold(0.0f64, |m, &r| m.max(r));
         let a: &[f64] = if scaled { &self.scaled_values } else { values };
-        let row_abs = &mut self.probe[..n];
-        row_abs.fill(0.0);
-        for j in 0..n {
-            for k in cp[j]..cp[j + 1] {
-                row_abs[ri[k]] += a[k].abs();
-            }
-        }
-        let a_norm_inf = row_abs.iter().fold(0.0f64, |m, &r| m.max(r));
 
         let verdict = if sym.variant == LuVariant::Dense {
             match self.dense.factor(&sym.structure, a) {
@@ -882,14 +871,6 @@ impl SparseLu {
                 a_norm_inf,
             )
         };
-        if let Probe::NonFinite(first) = verdict {
-            let b = std::mem::take(&mut self.scaled_values);
-            let pivot = self
-                .locate_null_dof(if scaled { &b } else { values })
-                .unwrap_or(first);
-            self.scaled_values = b;
-            return Err(LinalgError::Singular { pivot });
-        }
         match verdict {
             Probe::Ok => {
                 self.factored = true;
@@ -898,7 +879,14 @@ impl SparseLu {
             Probe::Structural(pivot) | Probe::Singular(pivot) => {
                 Err(LinalgError::Singular { pivot })
             }
-            Probe::NonFinite(first) => Err(LinalgError::Singular { pivot: first }),
+            Probe::NonFinite(first) => {
+                let b = std::mem::take(&mut self.scaled_values);
+                let pivot = self
+                    .locate_null_dof(if scaled { &b } else { values })
+                    .unwrap_or(first);
+                self.scaled_values = b;
+                Err(LinalgError::Singular { pivot })
+            }
             Probe::Failed(msg) => Err(LinalgError::Other(msg)),
         }
     }
@@ -1378,8 +1366,7 @@ fn substitute(lu: &[f64], n: usize, prof: &Profile, y: &mut [f64]) {
 /// below the diagonal). Unlike [`dense_solve`] it rejects only exactly zero or
 /// non-finite pivots: a graded matrix (axial rows 1e16 times the bending rows) has
 /// legitimate pivots far below n·ε·max|A|, and partial pivoting solves such matrices
-/// accurately in the small rows. [`DenseLu::abs_form`] gives the componentwise size of
-/// the factors that bounds the backward error.
+/// accurately in the small rows.
 pub struct DenseLu {
     n: usize,
     lu: Vec<f64>,
@@ -1415,26 +1402,6 @@ impl DenseLu {
         }
         b.copy_from_slice(&y);
         Ok(())
-    }
-
-    /// (P|x|)ᵀ |L| |U| |x|: the computed factors are exact for A + E with
-    /// |PE| ≤ γ_n |L||U| (Higham, Thm 9.3), so γ_n times this bounds |xᵀ E x|, the first-
-    /// order change of a Rayleigh quotient of A at x.
-    pub fn abs_form(&self, x: &[f64]) -> f64 {
-        let n = self.n;
-        let mut ux = vec![0.0; n];
-        for i in 0..n {
-            ux[i] = (i..n).map(|j| self.lu[i * n + j].abs() * x[j].abs()).sum();
-        }
-        let mut acc = 0.0;
-        for i in 0..n {
-            let lrow: f64 = (0..i)
-                .map(|j| self.lu[i * n + j].abs() * ux[j])
-                .sum::<f64>()
-                + ux[i];
-            acc += x[self.perm[i]].abs() * lrow;
-        }
-        acc
     }
 }
 
