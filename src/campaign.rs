@@ -672,7 +672,7 @@ pub fn merge(
     let incomplete = !report.missing.is_empty() || !report.interrupted.is_empty();
     // the sensors and their components/units as the model defines them (the hash says
     // every shard has the same)
-    let sensors = {
+    let (sensors, grid) = {
         let mut sets = first.info.set.clone();
         if let Some(row) = first.info.variants.first() {
             sets.extend(first.info.varied.iter().cloned().zip(row.iter().copied()));
@@ -685,7 +685,10 @@ pub fn merge(
                 ))
             },
         )?;
-        SensorMeta::of_model(&m)
+        (
+            SensorMeta::of_model(&m),
+            crate::solver::dynamics::output_times(&m),
+        )
     };
     let meta = CampaignMeta {
         command_line: command_line.to_string(),
@@ -708,6 +711,25 @@ pub fn merge(
     // another tool would otherwise be copied into garbage or an unreadable file)
     for p in inputs {
         let f = CampaignFile::open(p)?;
+        // the hash fixes the output grid (every variant reports on the model's one), so
+        // a /time that is not that grid was altered after the sweep wrote it; merged,
+        // every sample would carry a wrong time
+        if let Some(k) = (0..grid.len().max(f.time.len()))
+            .find(|&k| f.time.get(k).map(|t| t.to_bits()) != grid.get(k).map(|t| t.to_bits()))
+        {
+            return Err(MergeError::Refused(format!(
+                "{}: /time is not the campaign's output grid ({} samples, {} stored): sample \
+                 {k} reads {} where the model's grid has {}; the file was altered after the \
+                 sweep wrote it",
+                p.display(),
+                grid.len(),
+                f.time.len(),
+                f.time
+                    .get(k)
+                    .map_or("nothing".into(), |t| format!("{t:?} s")),
+                grid.get(k).map_or("nothing".into(), |t| format!("{t:?} s")),
+            )));
+        }
         let rows = f.global_index.len();
         for s in &sensors {
             let src = f

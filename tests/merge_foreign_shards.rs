@@ -166,3 +166,47 @@ fn resume_refuses_a_file_whose_sensors_were_rewritten_without_shuffle() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The campaign's hash fixes its output grid, so a shard whose /time was edited after
+/// the sweep wrote it (one sample moved by 1 ms, or the first shard's) is refused with
+/// the sample named; until session 34 merge took the first shard's /time as it was and
+/// every merged sample could carry a wrong time.
+#[test]
+fn merge_refuses_a_shard_whose_time_grid_was_altered_with_exit_2() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("time");
+    shards(&dir);
+    for (src, bad) in [("sh2.h5", "t2.h5"), ("sh1.h5", "t1.h5")] {
+        let script = format!(
+            "import h5py, shutil\nshutil.copy('{src}', '{bad}')\nwith h5py.File('{bad}', 'r+') as f:\n    t = f['time'][:]; t[3] += 1e-3; f['time'][:] = t\n"
+        );
+        assert!(Command::new("python3")
+            .args(["-c", &script])
+            .current_dir(&dir)
+            .status()
+            .unwrap()
+            .success());
+        let pair = if src == "sh2.h5" {
+            ["sh1.h5", bad]
+        } else {
+            [bad, "sh2.h5"]
+        };
+        let out = run(&dir, &["merge", pair[0], pair[1], "-o", "m.h5"]);
+        refused(&out, bad, &[bad, "/time", "sample 3"]);
+        assert!(
+            !dir.join("m.h5").exists(),
+            "{bad}: a merged file was written"
+        );
+    }
+    let out = run(&dir, &["merge", "sh1.h5", "sh2.h5", "-o", "m.h5"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
