@@ -711,25 +711,7 @@ pub fn merge(
     // another tool would otherwise be copied into garbage or an unreadable file)
     for p in inputs {
         let f = CampaignFile::open(p)?;
-        // the hash fixes the output grid (every variant reports on the model's one), so
-        // a /time that is not that grid was altered after the sweep wrote it; merged,
-        // every sample would carry a wrong time
-        if let Some(k) = (0..grid.len().max(f.time.len()))
-            .find(|&k| f.time.get(k).map(|t| t.to_bits()) != grid.get(k).map(|t| t.to_bits()))
-        {
-            return Err(MergeError::Refused(format!(
-                "{}: /time is not the campaign's output grid ({} samples, {} stored): sample \
-                 {k} reads {} where the model's grid has {}; the file was altered after the \
-                 sweep wrote it",
-                p.display(),
-                grid.len(),
-                f.time.len(),
-                f.time
-                    .get(k)
-                    .map_or("nothing".into(), |t| format!("{t:?} s")),
-                grid.get(k).map_or("nothing".into(), |t| format!("{t:?} s")),
-            )));
-        }
+        check_time_grid(&f.time, &grid, &p.display().to_string())?;
         let rows = f.global_index.len();
         for s in &sensors {
             let src = f
@@ -877,6 +859,28 @@ fn sensor_copy_mismatch(
     crate::output::raw_copy_mismatch(src, &[1, crate::output::chunk_times(nc, n_time), nc])
 }
 
+/// The hash fixes the output grid (every variant reports on the model's one), so a
+/// stored /time that is not that grid was altered after the sweep wrote it; merged or
+/// resumed, every sample would carry a wrong time.
+fn check_time_grid(stored: &[f64], grid: &[f64], what: &str) -> Result<(), MergeError> {
+    let bits = |v: &[f64], k: usize| v.get(k).map(|t| t.to_bits());
+    match (0..grid.len().max(stored.len())).find(|&k| bits(stored, k) != bits(grid, k)) {
+        None => Ok(()),
+        Some(k) => {
+            let show = |v: &[f64]| v.get(k).map_or("nothing".into(), |t| format!("{t:?} s"));
+            Err(MergeError::Refused(format!(
+                "{what}: /time is not the campaign's output grid ({} samples, {} stored): \
+                 sample {k} reads {} where the model's grid has {}; the file was altered \
+                 after the sweep wrote it",
+                grid.len(),
+                stored.len(),
+                show(stored),
+                show(grid),
+            )))
+        }
+    }
+}
+
 /// What `sweep --resume FILE` runs, and the file reopened to take it.
 pub struct Resume {
     pub prepared: crate::ensemble::Prepared,
@@ -962,6 +966,11 @@ pub fn resume_until(
         .first()
         .or(prepared.reference.as_ref())
         .ok_or_else(|| MergeError::Refused("--resume: no model compiled".into()))?;
+    check_time_grid(
+        &f.time,
+        &crate::solver::dynamics::output_times(layout),
+        &format!("--resume {}", f.path.display()),
+    )?;
     let mut parameter_values = f.parameter_values.clone();
     for (v, &r) in rows.iter().enumerate() {
         parameter_values[r] = prepared.models[v].params.iter().map(|(_, x)| *x).collect();

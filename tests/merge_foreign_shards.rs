@@ -169,8 +169,8 @@ fn resume_refuses_a_file_whose_sensors_were_rewritten_without_shuffle() {
 
 /// The campaign's hash fixes its output grid, so a shard whose /time was edited after
 /// the sweep wrote it (one sample moved by 1 ms, or the first shard's) is refused with
-/// the sample named; until session 34 merge took the first shard's /time as it was and
-/// every merged sample could carry a wrong time.
+/// the sample named, by merge and by `sweep --resume`; until session 34 both took the
+/// stored /time as it was and every sample could carry a wrong time.
 #[test]
 fn merge_refuses_a_shard_whose_time_grid_was_altered_with_exit_2() {
     if !common::h5py_available() {
@@ -200,6 +200,12 @@ fn merge_refuses_a_shard_whose_time_grid_was_altered_with_exit_2() {
             !dir.join("m.h5").exists(),
             "{bad}: a merged file was written"
         );
+        // `sweep --resume` reads the file as merge does
+        let m = model();
+        let mut args = vec!["sweep", m.as_str()];
+        args.extend(SWEEP);
+        args.extend(["--resume", bad]);
+        refused(&run(&dir, &args), bad, &[bad, "/time", "sample 3"]);
     }
     let out = run(&dir, &["merge", "sh1.h5", "sh2.h5", "-o", "m.h5"]);
     assert_eq!(
