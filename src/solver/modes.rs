@@ -231,15 +231,22 @@ fn matvec(a: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
 /// (|x|ᵀ |A| |x|, √Σᵢⱼ (Aᵢⱼ xᵢ xⱼ)²): the worst-case and the probabilistic size of a
 /// quadratic form's round-off, per unit relative error of the entries
 fn form_sizes(a: &[f64], n: usize, x: &[f64]) -> (f64, f64) {
-    let (mut sum, mut sq) = (0.0, 0.0);
-    for i in 0..n {
-        for (p, q) in a[i * n..(i + 1) * n].iter().zip(x) {
-            let t = p * q * x[i];
-            sum += t.abs();
-            sq += t * t;
-        }
+    let terms = || {
+        (0..n).flat_map(move |i| {
+            a[i * n..(i + 1) * n]
+                .iter()
+                .zip(x)
+                .map(move |(p, q)| p * q * x[i])
+        })
+    };
+    let sum: f64 = terms().map(f64::abs).sum();
+    if sum == 0.0 || !sum.is_finite() {
+        return (sum, sum);
     }
-    (sum, sq.sqrt())
+    // squares of terms taken relative to their sum, which cannot overflow where the
+    // terms themselves do not (K of 1e200 N·m²)
+    let sq: f64 = terms().map(|t| (t / sum) * (t / sum)).sum();
+    (sum, sum * sq.sqrt())
 }
 
 /// a·b with the error of every product and sum carried in a second word (Ogita, Rump and
