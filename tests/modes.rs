@@ -768,9 +768,9 @@ fn a_fine_cantilevers_frequency_does_not_depend_on_the_rounding_of_its_shape() {
 /// f·s is unchanged): the first four within 1e-6 (measured 3e-8 to 1.8e-7, the steady
 /// state's and the finite-difference stiffness's own round-off), both undamped to 1e-9
 /// (measured 1e-11), neither warned. The first-order form's translation and rotation
-/// entries scale apart by s, and unbalanced the small twin's flap mode read 4.4e-4 off,
-/// with damping ratios of 6e-6 and a warning that its frequencies were within the
-/// eigen-solver's round-off of zero.
+/// entries scale apart by s, and unbalanced the small twin's flap mode read 3.8e-5 to
+/// 4.4e-4 off (as the inputs' last bits fell), with damping ratios up to 1.4e-5 and a
+/// warning that its frequencies were within the eigen-solver's round-off of zero.
 #[test]
 fn a_half_millimetre_blade_has_the_rotating_modes_of_its_five_metre_twin() {
     let s = 1e-4f64;
