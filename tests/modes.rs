@@ -819,3 +819,22 @@ fn a_half_millimetre_blade_has_the_rotating_modes_of_its_five_metre_twin() {
         }
     }
 }
+
+/// The default count is "up to ten": a model with fewer modes reports them all without a
+/// word (the shipped pendulum's `modes` carried "--count 10: the model has only 1
+/// modes", a count nobody asked for, as its one warning). An explicit `--count` above
+/// what the model has is still warned.
+#[test]
+fn the_default_mode_count_on_a_small_model_is_not_warned() {
+    let v = modes_json(&["models/pendulum.toml"]);
+    assert_eq!(freqs(&v).len(), 1, "{v}");
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    let v = modes_json(&["models/pendulum.toml", "--count", "3"]);
+    assert_eq!(
+        v["warnings"],
+        serde_json::json!([
+            "--count 3: the model has only 1 mode (1 free coordinate); it is reported"
+        ]),
+        "{v}"
+    );
+}

@@ -246,9 +246,9 @@ pub(crate) struct BackendArgs {
 pub(crate) struct ModesArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
-    /// number of modes to report (1 to 100000)
-    #[arg(long, default_value_t = 10, value_parser = parse_mode_count)]
-    pub(crate) count: usize,
+    /// number of modes to report (1 to 100000; default 10, or all the model has if fewer)
+    #[arg(long = "count", value_name = "COUNT", value_parser = parse_mode_count)]
+    pub(crate) count_arg: Option<usize>,
     /// linearise about `static` equilibrium under the loads, or the `reference`
     /// configuration; `auto` = static when the model has loads or gravity
     #[arg(long, default_value = "auto", value_parser = ["auto", "static", "reference"])]
@@ -261,6 +261,16 @@ pub(crate) struct ModesArgs {
     /// their identity
     #[arg(long, value_name = "NAME=START:STOP:COUNT", value_parser = latdyn::ensemble::Range::parse)]
     pub(crate) vary: Option<latdyn::ensemble::Range>,
+}
+
+impl ModesArgs {
+    /// The modes to report: `--count`, else 10. Only an explicit `--count` above what the
+    /// model has is warned; the default simply reports them all (the pendulum's one mode
+    /// was reported with the warning "--count 10: the model has only 1 modes", a count
+    /// nobody asked for).
+    pub(crate) fn count(&self) -> usize {
+        self.count_arg.unwrap_or(10)
+    }
 }
 
 #[derive(Args)]

@@ -54,12 +54,16 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     } else {
         latdyn::joint::State::new(&m)
     };
-    let mut md = latdyn::solver::modes::lowest_modes(&m, &state, args.count)
+    let mut md = latdyn::solver::modes::lowest_modes(&m, &state, args.count())
         .with_context(|| format!("{}: modes", m.path))?;
     md.warnings.splice(0..0, static_warnings);
-    let count = args.count.min(md.frequencies_hz.len());
-    md.warnings
-        .extend(fewer_modes(args.count, md.frequencies_hz.len(), m.n_eq, ""));
+    let count = args.count().min(md.frequencies_hz.len());
+    md.warnings.extend(fewer_modes(
+        args.count_arg,
+        md.frequencies_hz.len(),
+        m.n_eq,
+        "",
+    ));
     let f = &md.frequencies_hz[..count];
     for w in &md.warnings {
         eprintln!("warning: {w}");
@@ -113,10 +117,12 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     }
 }
 
-/// The warning when `--count` asks for more modes than the analysis has (`have`): the
+/// The warning when an explicit `--count` asks for more modes than the analysis has
+/// (`have`; none without the option, whose default 10 is "up to ten"): the
 /// model has fewer free coordinates than that, or some of them carry no mass (massless
 /// directions are condensed out, see `solver::modes`), and only `have` are reported.
-fn fewer_modes(count: usize, have: usize, free_dofs: usize, frame: &str) -> Option<String> {
+fn fewer_modes(count: Option<usize>, have: usize, free_dofs: usize, frame: &str) -> Option<String> {
+    let count = count?;
     (count > have).then(|| {
         let why = if have < free_dofs {
             format!(
@@ -125,12 +131,17 @@ fn fewer_modes(count: usize, have: usize, free_dofs: usize, frame: &str) -> Opti
                 free_dofs - have
             )
         } else {
-            format!("{free_dofs} free coordinates")
+            format!(
+                "{free_dofs} free coordinate{}",
+                if free_dofs == 1 { "" } else { "s" }
+            )
         };
-        format!(
-            "--count {count}: the model has only {have} modes{frame} ({why}); all {have} are \
-             reported"
-        )
+        let (modes, are) = if have == 1 {
+            ("mode", "it is")
+        } else {
+            ("modes", "all are")
+        };
+        format!("--count {count}: the model has only {have} {modes}{frame} ({why}); {are} reported")
     })
 }
 
@@ -143,11 +154,11 @@ pub(crate) fn rotating_modes(
 ) -> anyhow::Result<()> {
     let rm = latdyn::solver::rotating::rotating_modes(m, spin)
         .with_context(|| format!("{}: rotating-frame modes", m.path))?;
-    let count = args.count.min(rm.frequencies_hz.len());
+    let count = args.count().min(rm.frequencies_hz.len());
     let f = &rm.frequencies_hz[..count];
     let mut warnings: Vec<String> = rm.steady_warning().into_iter().collect();
     warnings.extend(fewer_modes(
-        args.count,
+        args.count_arg,
         rm.frequencies_hz.len(),
         m.n_eq,
         " in the rotating frame",
@@ -182,7 +193,7 @@ pub(crate) fn rotating_modes(
 /// branches by MAC against the previous value's shapes.
 pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> anyhow::Result<()> {
     use latdyn::solver::rotating;
-    if args.count == 0 {
+    if args.count() == 0 {
         return Err(anyhow!("--count must be at least 1"));
     }
     let base = model::load(&args.model.model, &args.model.set)?;
@@ -202,7 +213,7 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
     let values = range.values();
     // a few spare shapes per value: a branch whose mode has moved past others must
     // still find it among the candidates
-    let want = args.count + 4;
+    let want = args.count() + 4;
     let mut steps = Vec::with_capacity(values.len());
     let mut warnings: Vec<String> = Vec::new();
     let mut free_dofs = 0;
@@ -248,10 +259,10 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
         }
         steps.push(rm);
     }
-    let branches = rotating::track_branches(&steps, args.count);
+    let branches = rotating::track_branches(&steps, args.count());
     // the fewest modes of any value bound what is followed and sorted
     if let Some(have) = steps.iter().map(|s| s.frequencies_hz.len()).min() {
-        if let Some(w) = fewer_modes(args.count, have, free_dofs, " in the rotating frame") {
+        if let Some(w) = fewer_modes(args.count_arg, have, free_dofs, " in the rotating frame") {
             eprintln!("warning: {}: {w}", args.model.model.display());
             warnings.push(w);
         }
@@ -272,7 +283,7 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
             .collect();
         let sorted: Vec<Vec<f64>> = steps
             .iter()
-            .map(|s| s.frequencies_hz[..args.count.min(s.frequencies_hz.len())].to_vec())
+            .map(|s| s.frequencies_hz[..args.count().min(s.frequencies_hz.len())].to_vec())
             .collect();
         let v = serde_json::json!({
             "about": "steady_rotation",
