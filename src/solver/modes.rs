@@ -153,9 +153,9 @@ pub const STIFF_NULL_REL: f64 = 1e-10;
 /// (Not max|K|/max eig(M) as the scale: on a graded model that is the axial stiffness,
 /// and an unresolved bending mode would pass as a zero-frequency one.)
 pub const ZERO_SCALE_REL: f64 = 1e-6;
-/// Round-off of the assembled K and M (and of the products that form the Rayleigh
-/// quotient) as a share of each entry: 8 ε per entry (a sum of element contributions
-/// a few operations deep) times a confidence of 8. The eigenvalue's error is the sum
+/// Round-off of the assembled K and M as a share of each entry (the Rayleigh quotient's
+/// own sums are carried in twice the precision, `dot2`): 8 ε per entry (a sum of
+/// element contributions a few operations deep) times a confidence of 8. The eigenvalue's error is the sum
 /// Σ δᵢⱼ Kᵢⱼ φᵢ φⱼ over the entries' errors δᵢⱼ; taken as independent with zero mean and
 /// |δᵢⱼ| ≤ 8 ε, it exceeds 8 × 8 ε √Σ (Kᵢⱼ φᵢ φⱼ)² with probability below 2e^(−32)
 /// (Hoeffding; the probabilistic rounding analysis of Higham and Mary, SIAM J. Sci.
