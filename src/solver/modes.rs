@@ -155,8 +155,9 @@ pub const STIFF_NULL_REL: f64 = 1e-10;
 pub const ZERO_SCALE_REL: f64 = 1e-6;
 /// Round-off of the assembled K and M as a share of each entry (the Rayleigh quotient's
 /// own sums are carried in twice the precision, `dot2`): 8 ε per entry (a sum of
-/// element contributions a few operations deep) times a confidence of 8. The eigenvalue's error is the sum
-/// Σ δᵢⱼ Kᵢⱼ φᵢ φⱼ over the entries' errors δᵢⱼ; taken as independent with zero mean and
+/// element contributions a few operations deep) times a confidence of 8. The
+/// eigenvalue's error is the sum Σ δᵢⱼ Kᵢⱼ φᵢ φⱼ over the entries' errors δᵢⱼ; taken as
+/// independent with zero mean and
 /// |δᵢⱼ| ≤ 8 ε, it exceeds 8 × 8 ε √Σ (Kᵢⱼ φᵢ φⱼ)² with probability below 2e^(−32)
 /// (Hoeffding; the probabilistic rounding analysis of Higham and Mary, SIAM J. Sci.
 /// Comput. 41, 2019). The worst case, the same share of Σ |Kᵢⱼ φᵢ φⱼ|, is kept for
