@@ -749,12 +749,7 @@ impl SparseLu {
             } else {
                 self.group_max[ng + g]
             };
-            let e = unit.sqrt().log2().round();
-            *s = if e.is_finite() && e.abs() < 1000.0 {
-                2f64.powi(e as i32)
-            } else {
-                1.0
-            };
+            *s = pow2_near(unit.sqrt());
         }
     }
 
@@ -1176,7 +1171,7 @@ pub fn generalized_sym_eig(
     let mut y = x.transpose().to_owned();
     l.solve_lower_triangular_in_place(y.as_mut());
     let c = Mat::<f64>::from_fn(n, n, |i, j| 0.5 * (y[(i, j)] + y[(j, i)]));
-    let (up, down) = unit_scale(&(0..n * n).map(|q| c[(q / n, q % n)]).collect::<Vec<_>>());
+    let (up, down) = unit_scale((0..n * n).map(|q| c[(q / n, q % n)]));
     let c = Mat::<f64>::from_fn(n, n, |i, j| c[(i, j)] * up);
     let eig = c
         .self_adjoint_eigen(Side::Lower)
@@ -1215,14 +1210,43 @@ pub fn generalized_sym_eig(
 /// scales the tridiagonal to unit norm first; this does the same. A 600-coordinate mass
 /// matrix of 1e-8 kg read 299 eigenvalues of −1.6e-17 (1.6e-9 of its norm) unscaled and
 /// −3.8e-24 scaled. Powers of two change no mantissa.
-fn unit_scale(a: &[f64]) -> (f64, f64) {
-    let amax = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    if amax == 0.0 || !amax.is_finite() {
-        return (1.0, 1.0);
+fn unit_scale(a: impl IntoIterator<Item = f64>) -> (f64, f64) {
+    let amax = a.into_iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let down = pow2_near(amax);
+    (1.0 / down, down)
+}
+
+/// The power of two nearest `x` (to the nearest exponent), or 1 where `x` is zero, not
+/// finite, or beyond 2^±1000 (where a power and its inverse would over- or underflow).
+/// Scaling by it changes no mantissa.
+pub fn pow2_near(x: f64) -> f64 {
+    let e = x.abs().log2().round();
+    if e.is_finite() && e.abs() < 1000.0 {
+        2f64.powi(e as i32)
+    } else {
+        1.0
     }
-    // within ±1000 so that neither power over- nor underflows
-    let e = (amax.log2().round() as i32).clamp(-1000, 1000);
-    (2f64.powi(-e), 2f64.powi(e))
+}
+
+/// Jacobi scaling in place: A ← D A D with dᵢ = `d_of`(|Aᵢᵢ|) (1 where Aᵢᵢ is zero or not
+/// finite). Returns D's diagonal.
+pub fn jacobi_scale(a: &mut [f64], n: usize, d_of: impl Fn(f64) -> f64) -> Vec<f64> {
+    let d: Vec<f64> = (0..n)
+        .map(|i| {
+            let q = a[i * n + i].abs();
+            if q > 0.0 && q.is_finite() {
+                d_of(q)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    for i in 0..n {
+        for j in 0..n {
+            a[i * n + j] *= d[i] * d[j];
+        }
+    }
+    d
 }
 
 /// Symmetric eigendecomposition of the row-major n×n `a` (symmetrised as (A + Aᵀ)/2):
@@ -1233,7 +1257,7 @@ pub fn sym_eig(a: &[f64], n: usize) -> Result<(Vec<f64>, Vec<f64>), LinalgError>
     if n == 0 {
         return Ok((Vec::new(), Vec::new()));
     }
-    let (up, down) = unit_scale(a);
+    let (up, down) = unit_scale(a.iter().copied());
     let c = Mat::<f64>::from_fn(n, n, |i, j| 0.5 * (a[i * n + j] + a[j * n + i]) * up);
     let eig = c
         .self_adjoint_eigen(Side::Lower)
@@ -1485,13 +1509,19 @@ pub fn balance(a: &mut [f64], n: usize) {
 /// `(0, -ω), (0, ω)`). Complex eigenvalues come in conjugate pairs. The matrix is
 /// [`balance`]d first.
 pub fn general_eig(a: &[f64], n: usize) -> Result<Vec<(f64, f64)>, LinalgError> {
+    general_eig_balancing(&mut a.to_vec(), n)
+}
+
+/// [`general_eig`] on `a` balanced in place: a caller that needs the balanced matrix
+/// (its scale, for the eigenvalues' round-off) reads it afterwards instead of balancing
+/// twice.
+pub fn general_eig_balancing(a: &mut [f64], n: usize) -> Result<Vec<(f64, f64)>, LinalgError> {
     check_square("general_eig", a, n)?;
     if n == 0 {
         return Ok(Vec::new());
     }
-    let mut a = a.to_vec();
-    balance(&mut a, n);
-    let amat = MatRef::from_row_major_slice(&a, n, n);
+    balance(a, n);
+    let amat = MatRef::from_row_major_slice(a, n, n);
     let ev = amat
         .eigenvalues()
         .map_err(|e| LinalgError::Other(format!("general eigensolver: {e:?}")))?;

@@ -61,12 +61,17 @@ fn rewrite(dir: &Path, src: &str, dst: &str, how: &str) {
     let script = format!(
         "import h5py, shutil\nshutil.copy('{src}', '{dst}')\nwith h5py.File('{dst}', 'r+') as f:\n    for s in list(f['sensors'].keys()):\n        n = 'sensors/' + s; d = f[n]; a = d[:]; at = dict(d.attrs); ch = d.chunks\n        del f[n]\n        {body}\n        for k, v in at.items(): ds.attrs[k] = v\n"
     );
+    h5py(dir, &script);
+}
+
+/// Runs the Python `script` (h5py edits of the files) in `dir`.
+fn h5py(dir: &Path, script: &str) {
     let st = Command::new("python3")
-        .args(["-c", &script])
+        .args(["-c", script])
         .current_dir(dir)
         .status()
         .unwrap();
-    assert!(st.success(), "h5py rewrite {how}");
+    assert!(st.success(), "h5py: {script}");
 }
 
 fn refused(out: &Output, what: &str, needles: &[&str]) {
@@ -125,12 +130,7 @@ fn merge_refuses_a_shard_without_a_sensor_with_exit_2() {
     let dir = scratch("missing");
     shards(&dir);
     let script = "import h5py, shutil\nshutil.copy('sh2.h5', 'ms.h5')\nwith h5py.File('ms.h5', 'r+') as f:\n    del f['sensors/energy']\n";
-    assert!(Command::new("python3")
-        .args(["-c", script])
-        .current_dir(&dir)
-        .status()
-        .unwrap()
-        .success());
+    h5py(&dir, script);
     let out = run(&dir, &["merge", "sh1.h5", "ms.h5", "-o", "m.h5"]);
     refused(&out, "missing sensor", &["ms.h5", "energy"]);
     let _ = std::fs::remove_dir_all(&dir);
@@ -183,12 +183,7 @@ fn merge_refuses_a_shard_whose_time_grid_was_altered_with_exit_2() {
         let script = format!(
             "import h5py, shutil\nshutil.copy('{src}', '{bad}')\nwith h5py.File('{bad}', 'r+') as f:\n    t = f['time'][:]; t[3] += 1e-3; f['time'][:] = t\n"
         );
-        assert!(Command::new("python3")
-            .args(["-c", &script])
-            .current_dir(&dir)
-            .status()
-            .unwrap()
-            .success());
+        h5py(&dir, &script);
         let pair = if src == "sh2.h5" {
             ["sh1.h5", bad]
         } else {

@@ -93,6 +93,16 @@ fn modes_json(args: &[&str]) -> serde_json::Value {
     latdyn_json(&a)
 }
 
+/// `modes MODEL --set NAME=VALUE... --count 4 --json`
+fn modes_with(model: &str, sets: &[(&str, f64)]) -> serde_json::Value {
+    let sets: Vec<String> = sets.iter().map(|(k, v)| format!("{k}={v:e}")).collect();
+    let mut args = vec![model, "--count", "4"];
+    for s in &sets {
+        args.extend(["--set", s.as_str()]);
+    }
+    modes_json(&args)
+}
+
 fn freqs(v: &serde_json::Value) -> Vec<f64> {
     v["frequencies_hz"]
         .as_array()
@@ -713,24 +723,17 @@ fn a_large_mode_count_keeps_the_lowest_modes_exact() {
 fn a_fine_cantilever_in_any_unit_reads_the_continuum_frequency_unwarned() {
     let want = 1.875_104_068_711_961f64.powi(2) * 10.0 / (2.0 * std::f64::consts::PI);
     for l in [1.0f64, 1e-2, 1e-3] {
-        let set = |k: &str, v: f64| format!("{k}={v:e}");
-        let v = modes_json(&[
+        let v = modes_with(
             "models/cantilever.toml",
-            "--set",
-            "elements=100",
-            "--set",
-            &set("L", l),
-            "--set",
-            &set("EI", 100.0 * l.powi(4)),
-            "--set",
-            &set("GJ", 80.0 * l.powi(4)),
-            "--set",
-            &set("EA", 1e6 * l * l),
-            "--set",
-            &set("rhoA", l * l),
-            "--count",
-            "4",
-        ]);
+            &[
+                ("elements", 100.0),
+                ("L", l),
+                ("EI", 100.0 * l.powi(4)),
+                ("GJ", 80.0 * l.powi(4)),
+                ("EA", 1e6 * l * l),
+                ("rhoA", l * l),
+            ],
+        );
         let f = freqs(&v);
         assert!(
             (f[0] * l - want).abs() < 5e-8 * want,
@@ -774,33 +777,20 @@ fn a_fine_cantilevers_frequency_does_not_depend_on_the_rounding_of_its_shape() {
 #[test]
 fn a_half_millimetre_blade_has_the_rotating_modes_of_its_five_metre_twin() {
     let s = 1e-4f64;
-    let big = modes_json(&[
-        "models/flapping_blade.toml",
-        "--set",
-        "elements=60",
-        "--count",
-        "4",
-    ]);
-    let set = |k: &str, v: f64| format!("{k}={v:e}");
-    let small = modes_json(&[
-        "models/flapping_blade.toml",
-        "--set",
-        "elements=60",
-        "--set",
-        &set("L", 5.0 * s),
-        "--set",
-        &set("EI", 4375.0 * s.powi(4)),
-        "--set",
-        &set("GJ", 5000.0 * s.powi(4)),
-        "--set",
-        &set("EA", 1e8 * s * s),
-        "--set",
-        &set("rhoA", 10.0 * s * s),
-        "--set",
-        &set("omega", 6.0 / s),
-        "--count",
-        "4",
-    ]);
+    let blade = "models/flapping_blade.toml";
+    let big = modes_with(blade, &[("elements", 60.0)]);
+    let small = modes_with(
+        blade,
+        &[
+            ("elements", 60.0),
+            ("L", 5.0 * s),
+            ("EI", 4375.0 * s.powi(4)),
+            ("GJ", 5000.0 * s.powi(4)),
+            ("EA", 1e8 * s * s),
+            ("rhoA", 10.0 * s * s),
+            ("omega", 6.0 / s),
+        ],
+    );
     let (fb, fs) = (freqs(&big), freqs(&small));
     assert_eq!(fs.len(), 4, "{small}");
     for k in 0..4 {

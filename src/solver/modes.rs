@@ -26,7 +26,7 @@
 
 use crate::assembly::{Assembler, Coeffs, DenseSink};
 use crate::joint::{self, State};
-use crate::linalg::{sym_eig, DenseLu, LinalgError};
+use crate::linalg::{jacobi_scale, pow2_near, sym_eig, DenseLu, LinalgError};
 use crate::model::Model;
 
 #[derive(Debug, thiserror::Error)]
@@ -321,21 +321,7 @@ struct ScaledLu {
 
 impl ScaledLu {
     fn new(mut a: Vec<f64>, n: usize) -> Result<Self, LinalgError> {
-        let d: Vec<f64> = (0..n)
-            .map(|i| {
-                let q = a[i * n + i].abs();
-                if q > 0.0 && q.is_finite() {
-                    2f64.powi((-0.5 * q.log2()).round().clamp(-1000.0, 1000.0) as i32)
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        for i in 0..n {
-            for j in 0..n {
-                a[i * n + j] *= d[i] * d[j];
-            }
-        }
+        let d = jacobi_scale(&mut a, n, |q| pow2_near(1.0 / q.sqrt()));
         Ok(ScaledLu {
             lu: DenseLu::new(&a, n)?,
             d,

@@ -20,7 +20,7 @@
 
 use crate::assembly::{Assembler, Coeffs, DenseSink};
 use crate::joint::{self, State};
-use crate::linalg::{balance, dense_solve, general_eig, DenseLu, LinalgError};
+use crate::linalg::{dense_solve, general_eig_balancing, DenseLu, LinalgError};
 use crate::math::*;
 use crate::model::{ChainLink, DofMode, Model, NodeKin};
 
@@ -968,10 +968,9 @@ fn shift_invert_eig(
                 b[(nk + r) * n2 + j] = (-sigma * u[r] + if r == j { 1.0 } else { 0.0 }) * down;
             }
         }
-        // balanced first, so the round-off scale below is the balanced matrix's (the one
-        // the eigen-solver works on), not that of the coordinates' units
-        balance(&mut b, n2);
-        let theta = general_eig(&b, n2)?;
+        // balanced in place, so the round-off scale below is the balanced matrix's (the
+        // one the eigen-solver works on), not that of the coordinates' units
+        let theta = general_eig_balancing(&mut b, n2)?;
         let ev: Vec<(f64, f64)> = theta
             .into_iter()
             .filter(|(re, im)| re * re + im * im > 0.0)
@@ -1015,8 +1014,7 @@ fn companion_eig(kk: &[f64], ck: &[f64], mk: &[f64], nk: usize) -> Result<Spectr
             a[(nk + i) * n2 + nk + j] = -minv_c[i * nk + j];
         }
     }
-    balance(&mut a, n2);
-    let ev = general_eig(&a, n2)?;
+    let ev = general_eig_balancing(&mut a, n2)?;
     // a double root is found within about √(ε·max|A|)
     let amax = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     Ok((ev, 10.0 * (f64::EPSILON * amax).sqrt()))

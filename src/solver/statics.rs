@@ -348,21 +348,7 @@ fn scaled_tangent(model: &Model, s: &State, lambda: f64) -> (Vec<f64>, Vec<f64>)
         &mut gen,
         Some(&mut crate::assembly::DenseSink { n, a: &mut k }),
     );
-    let d: Vec<f64> = (0..n)
-        .map(|i| {
-            let a = k[i * n + i].abs();
-            if a > 0.0 && a.is_finite() {
-                1.0 / a.sqrt()
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    for i in 0..n {
-        for j in 0..n {
-            k[i * n + j] *= d[i] * d[j];
-        }
-    }
+    let d = crate::linalg::jacobi_scale(&mut k, n, |a| 1.0 / a.sqrt());
     (k, d)
 }
 
