@@ -828,3 +828,63 @@ fn the_default_mode_count_on_a_small_model_is_not_warned() {
         "{v}"
     );
 }
+
+/// Stiffness and mass scaled together by 1e±200 leave every frequency the same up to the
+/// factor √(stiffness/mass), which must itself be representable. Before, the condensation
+/// and refinement formed products of entries (g gᵀ/κ, Σ K φ φ) that left double
+/// precision, and EI = 1e200 with ρA = 1e200 (as ρA = 1e-200 with EI = 1e-200) was
+/// refused as "non-finite value (NaN or infinity) in input", an input that was finite.
+/// Where the answer itself cannot be represented, or the stiffnesses span beyond double
+/// precision, the refusal says which.
+#[test]
+fn a_beam_in_extreme_units_has_its_unit_twins_frequencies_or_a_refusal_that_says_why() {
+    let unit = freqs(&modes_with("models/cantilever.toml", &[]));
+    for (s, m) in [
+        (1e200, 1e200),
+        (1e-200, 1e-200),
+        (1e200, 1.0),
+        (1e-150, 1e150),
+    ] {
+        let sets = [
+            ("EI", 100.0 * s),
+            ("GJ", 80.0 * s),
+            ("EA", 1e6 * s),
+            ("rhoA", m),
+        ];
+        let v = modes_with("models/cantilever.toml", &sets);
+        let f = freqs(&v);
+        assert_eq!(v["warnings"], serde_json::json!([]), "{s:e} {m:e}: {v}");
+        let factor = (s / m).sqrt();
+        for (a, b) in f.iter().zip(&unit) {
+            // the same pencil up to exact powers of two, but the entries are formed from
+            // EI etc. in floating point, which rounds differently: a few ε
+            assert!(
+                rel(*a, b * factor) < 1e-12,
+                "{s:e} {m:e}: {a:e} vs {:e}",
+                b * factor
+            );
+        }
+    }
+    let refused = |sets: &[&str], says: &str| {
+        let mut args = vec!["modes", "models/cantilever.toml", "--json"];
+        for s in sets {
+            args.extend(["--set", s]);
+        }
+        let out = latdyn(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{sets:?}: {err}");
+        assert!(out.stdout.is_empty(), "{sets:?}");
+        assert!(
+            err.contains(says) && !err.contains("non-finite"),
+            "{sets:?}: {err}"
+        );
+    };
+    // ω² ~ 1e600 and ~ 1e402 (L = 1e-100 m): not representable
+    refused(
+        &["EI=1e300", "rhoA=1e-300"],
+        "leave the range of double precision",
+    );
+    refused(&["L=1e-100"], "leave the range of double precision");
+    // EI 1e194 times EA L²: the axial modes are below the bending round-off
+    refused(&["EI=1e200"], "cannot be resolved in double precision");
+}

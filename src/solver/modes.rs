@@ -44,6 +44,8 @@ pub enum ModesError {
     Linalg(#[from] LinalgError),
     #[error("{0}")]
     TooLarge(String),
+    #[error("{0}")]
+    OutOfRange(String),
 }
 
 /// n×n matrices [`lowest_modes`] holds at its peak, rounded up: K and M, their symmetrised
@@ -350,10 +352,36 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
         return Err(LinalgError::Other(format!("K and M must be {n}×{n}")).into());
     }
     if !k.iter().chain(m).all(|v| v.is_finite()) {
+        eprintln!(
+            "DEBUG nonfinite input k {} m {}",
+            k.iter().all(|v| v.is_finite()),
+            m.iter().all(|v| v.is_finite())
+        );
         return Err(LinalgError::NonFinite.into());
     }
-    let k = symmetrised(k, n);
-    let m = symmetrised(m, n);
+    // K and M to unit size by powers of two (exact), the eigenvalues and shapes scaled
+    // back at the end: the condensation and the refinement form products of entries
+    // (g gᵀ/κ, Σ K φ φ) that left the range of double precision on a beam of EI = 1e200
+    // or ρA = 1e-200, which was refused as "non-finite value in input"
+    let size = |a: &[f64]| a.iter().fold(0.0f64, |x, y| x.max(y.abs()));
+    // 2^−round(log2 x), within the normal range (pow2_near stops at 2^±1000)
+    let unit = |x: f64, max_exp: f64| {
+        if x > 0.0 {
+            2f64.powi(-x.log2().round().clamp(-max_exp, max_exp) as i32)
+        } else {
+            1.0
+        }
+    };
+    let k_unit = unit(size(k), 1020.0);
+    // an even power, so that the shapes' factor √m_unit is exact too
+    let m_half = unit(size(m).sqrt(), 510.0);
+    let m_unit = m_half * m_half;
+    let mut k = symmetrised(k, n);
+    let mut m = symmetrised(m, n);
+    k.iter_mut().for_each(|x| *x *= k_unit);
+    m.iter_mut().for_each(|x| *x *= m_unit);
+    // λ = λ' m_unit / k_unit, in that order: the ratio alone may overflow where λ does not
+    let unscale = |x: f64| x * m_unit / k_unit;
 
     // 1. massless directions: the null space of M
     let (mu, v) = sym_eig(&m, n)?;
@@ -363,7 +391,7 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
     }
     let tol_m = MASS_NULL_REL.max(64.0 * n as f64 * f64::EPSILON) * mu_max;
     if let Some(&bad) = mu.iter().find(|&&x| x < -tol_m) {
-        return Err(ModesError::IndefiniteMass(bad));
+        return Err(ModesError::IndefiniteMass(bad / m_unit));
     }
     let rr: Vec<usize> = (0..n).filter(|&j| mu[j] > tol_m).collect();
     let zz: Vec<usize> = (0..n).filter(|&j| mu[j] <= tol_m).collect();
@@ -588,9 +616,30 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
         let floor = resid + 4.0 * f64::EPSILON * (sigma.abs() + lam.abs());
         let worst = floor + DATA_ROUNDOFF * (k_sum + lam.abs() * m_sum) / zmz;
         let likely = floor + DATA_ROUNDOFF * k_sq.hypot(lam * m_sq) / zmz;
-        out.push((lam, z.clone(), worst, likely));
+        let shape = z.iter().map(|x| x * m_half).collect();
+        out.push((unscale(lam), shape, unscale(worst), unscale(likely)));
     }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let sizes = format!(
+        "stiffness entries up to {:.1e}, mass entries up to {:.1e}",
+        size(&k) / k_unit,
+        size(&m) / m_unit
+    );
+    if out.iter().take(count).any(|r| !r.0.is_finite()) {
+        return Err(ModesError::OutOfRange(format!(
+            "the model's ω² (stiffness over mass) leave the range of double precision \
+             ({sizes}): choose units nearer the model's size"
+        )));
+    }
+    if out.iter().take(count).any(|r| !r.2.is_finite()) {
+        return Err(ModesError::OutOfRange(format!(
+            "the modes cannot be resolved in double precision: their round-off estimate \
+             overflows ({sizes}), as when the stiffnesses span too many orders of \
+             magnitude (e.g. EI far above EA L²)"
+        )));
+    }
+    // (the refined subspace's top, past the wanted modes, may overflow: left out)
+    out.retain(|r| r.0.is_finite() && r.2.is_finite() && r.3.is_finite());
     let two_pi = 2.0 * std::f64::consts::PI;
     let mut res = Modes {
         frequencies_hz: Vec::new(),
