@@ -332,6 +332,52 @@ fn the_estimate_matches_the_closed_form_error_of_a_linear_oscillator() {
     }
 }
 
+/// The estimate on many modes at once, against an independent model of it: the shipped
+/// cantilever (8 elements, given a rotary inertia) under its tip force applied at t = 0,
+/// which excites every bending mode about equally in the root moment, and
+/// `tests/estimator_model.py`, the same scheme and estimator written from the README's
+/// formulas in modal-free matrix form on linear Hermite elements. At ρ∞ = 0.9 the estimate
+/// over-reads the truth 22× (the phase-lost modes near ωh ≈ 1, README "a step load on a
+/// fine structure"); the model reads the same, so that is the estimator's design, not its
+/// code. Measured: 0.0426, 0.0819, 0.498 here against 0.0427, 0.0820, 0.499 in the model
+/// at ρ∞ = 0.3, 0.6, 0.9. Bound 2 %: the two element models differ (co-rotational with a
+/// 4-point mass rule, 1 % nonlinear at this load, against the linear closed forms).
+#[test]
+fn the_estimate_on_a_step_loaded_cantilever_is_that_of_an_independent_model_of_the_estimator() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: numpy (with h5py) is not installed");
+        return;
+    }
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    for rho in [0.3, 0.6, 0.9] {
+        let path = shipped_with(
+            "cantilever.toml",
+            "rhoA = \"rhoA\"\n",
+            "rhoA = \"rhoA\"\nrhoIy = 1e-4\nrhoIz = 1e-4\n",
+            &format!("estimator-model-{rho}"),
+        );
+        let text = std::fs::read_to_string(&path).unwrap();
+        let text = text
+            .replace("t_end = 1.0", "t_end = 0.3")
+            .replace("dt = 1e-3", &format!("dt = 1e-4\nrho_inf = {rho}"));
+        std::fs::write(&path, text).unwrap();
+        let v = run_json(&[path.to_str().unwrap(), "--set", "P=1"]);
+        let est = v["time_error_by_sensor"]["root_moment"].as_f64().unwrap();
+        let out = std::process::Command::new("python3")
+            .arg(root.join("tests/estimator_model.py"))
+            .args([&rho.to_string(), "1e-4", "0.3"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let model: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let want = model["estimate"].as_f64().unwrap();
+        assert!(
+            (est / want - 1.0).abs() < 0.02,
+            "rho_inf {rho}: latdyn {est:.4e}, the model {want:.4e}"
+        );
+    }
+}
+
 #[test]
 fn samples_interpolated_between_steps_that_miss_the_output_grid_keep_the_schemes_error() {
     // Under `--accuracy` a step that does not divide the output interval is kept (the

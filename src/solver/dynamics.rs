@@ -259,6 +259,9 @@ struct TimeError {
     gx0: Vec<f64>,
     gv0: Vec<f64>,
     gs: Vec<f64>,
+    /// the largest displacement of the run so far (angles times the model's size), the
+    /// scale of the transport's finite-difference step
+    motion: f64,
 }
 
 /// Whether a component's range is large enough to divide by: below 1e-12 of the largest
@@ -320,6 +323,7 @@ impl TimeError {
             gx0: vec![0.0; n_eq],
             gv0: vec![0.0; n_eq],
             gs: vec![0.0; n_eq],
+            motion: 0.0,
         }
     }
 
@@ -924,9 +928,22 @@ impl<'m> Integrator<'m> {
             // wherever measured (the gain once seen on the spin-up beam at 4x its step was
             // the uneven step sequence of session 17's fix) and cost 20 % of a blade
             // campaign's time (200 variants, one thread), so it is not made.
+            // a perturbation small against the motion, large against round-off: 1e-6 of
+            // the largest displacement so far (angles and spin increments times the
+            // model's size), between 1e-10 and 1e-6 of that size. (1e-6 of the size alone
+            // was larger than a small motion itself: under a tip force of 1e-6 N the
+            // cantilever deflects 7e-9 m, and the perturbation's quadratic terms read its
+            // tip's axial component, 3e-17 m, as 200 % off.)
+            let size = self.coord_scale;
+            let q = &self.trial.q;
+            let now = model.dofs.iter().enumerate().fold(0.0f64, |m, (d, dof)| {
+                let Some(k) = dof.eq else { return m };
+                let x = (q[d] - dof.q0).abs();
+                m.max(if model.rot_eq[k] { x * size } else { x })
+            });
             let te = &mut self.te;
-            // a perturbation small against the model, large against round-off
-            let sigma = 1e-6 * self.coord_scale / xmax;
+            te.motion = te.motion.max(now);
+            let sigma = 1e-6 * te.motion.clamp(1e-4 * size, size) / xmax;
             for k in 0..model.n_eq {
                 corr[k] = sigma * te.gx0[k];
             }

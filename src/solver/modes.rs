@@ -352,11 +352,6 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
         return Err(LinalgError::Other(format!("K and M must be {n}×{n}")).into());
     }
     if !k.iter().chain(m).all(|v| v.is_finite()) {
-        eprintln!(
-            "DEBUG nonfinite input k {} m {}",
-            k.iter().all(|v| v.is_finite()),
-            m.iter().all(|v| v.is_finite())
-        );
         return Err(LinalgError::NonFinite.into());
     }
     // K and M to unit size by powers of two (exact), the eigenvalues and shapes scaled

@@ -1,0 +1,106 @@
+"""An independent model of latdyn's time-error estimate, for a linear cantilever.
+
+The generalized-alpha step (Arnold-Bruels form: equilibrium at t_{n+1}, auxiliary
+acceleration) on a linear Euler-Bernoulli cantilever of Hermite elements with consistent
+translational and rotary mass, loaded at its tip by a force applied at t = 0 (the start
+consistent: a_0 = M^-1 F), and beside it the estimate as the README and
+src/solver/dynamics.rs describe it, written from those formulas and not from the code:
+the local error e = c_q h^2 (aux_{n+1} - aux_n) in the coordinates and
+e_v = c_v h^3 (second difference of aux) in the velocities, carried from step to step by
+the scheme's own linear recursion (exact here: the system is linear), mapped to the root
+bending moment EI w''(0). Prints, as JSON, the largest |estimated deviation| of the root
+moment over the steps divided by the moment's range over the same steps (the figure
+`time_error_by_sensor` reports), and the range.
+
+usage: python3 estimator_model.py RHO_INF DT T_END [ELEMENTS EI RHOA RHOI L P]
+"""
+import json
+import sys
+
+import numpy as np
+
+
+def main():
+    args = [float(a) for a in sys.argv[1:]]
+    rho, h, t_end = args[0], args[1], args[2]
+    rest_args = [8, 100.0, 1.0, 1e-4, 1.0, 1.0]
+    rest_args[: len(args) - 3] = args[3:]
+    n_el, ei, rho_a, rho_i, length, p = rest_args
+    n_el = int(n_el)
+    am = (2 * rho - 1) / (rho + 1)
+    af = rho / (rho + 1)
+    gam = 0.5 + af - am
+    beta = 0.25 * (gam + 0.5) ** 2
+    cq = beta - 1 / 6 + 0.5 * (am - af)
+    cv = 1 / 12 + (am - af) * (af - 0.5)
+    cfac = (1 - af) / (1 - am)
+
+    le = length / n_el
+    ke = ei / le**3 * np.array([
+        [12, 6 * le, -12, 6 * le],
+        [6 * le, 4 * le**2, -6 * le, 2 * le**2],
+        [-12, -6 * le, 12, -6 * le],
+        [6 * le, 2 * le**2, -6 * le, 4 * le**2],
+    ])
+    me = rho_a * le / 420 * np.array([
+        [156, 22 * le, 54, -13 * le],
+        [22 * le, 4 * le**2, 13 * le, -3 * le**2],
+        [54, 13 * le, 156, -22 * le],
+        [-13 * le, -3 * le**2, -22 * le, 4 * le**2],
+    ])
+    mr = rho_i / (30 * le) * np.array([
+        [36, 3 * le, -36, 3 * le],
+        [3 * le, 4 * le**2, -3 * le, -le**2],
+        [-36, -3 * le, 36, -3 * le],
+        [3 * le, -le**2, -3 * le, 4 * le**2],
+    ])
+    n = 2 * (n_el + 1)
+    k = np.zeros((n, n))
+    m = np.zeros((n, n))
+    for e in range(n_el):
+        i = list(range(2 * e, 2 * e + 4))
+        k[np.ix_(i, i)] += ke
+        m[np.ix_(i, i)] += me + mr
+    k, m = k[2:, 2:], m[2:, 2:]
+    n -= 2
+    f = np.zeros(n)
+    f[-2] = p
+    # root moment EI w''(0) of the first element (its first node clamped)
+    sens = np.zeros(n)
+    sens[0], sens[1] = ei * 6 / le**2, -ei * 2 / le
+
+    steps = int(round(t_end / h))
+    x, v = np.zeros(n), np.zeros(n)
+    a = np.linalg.solve(m, f)
+    aux = a.copy()
+    gx, gv, ga, gacc = (np.zeros(n) for _ in range(4))
+    da_prev = None
+    bp, gp = h * h * beta * cfac, h * gam * cfac
+    s_inv = np.linalg.inv(m + bp * k)
+    y_lo = y_hi = 0.0
+    worst = 0.0
+    for _ in range(steps):
+        rest = (af * a - am * aux) / (1 - am)
+        xp = x + h * v + h * h * (0.5 - beta) * aux + h * h * beta * rest
+        a1 = s_inv @ (f - k @ xp)
+        aux1 = cfac * a1 + rest
+        x1 = xp + bp * a1
+        v1 = v + h * (1 - gam) * aux + h * gam * aux1
+        da = aux1 - aux
+        e = cq * h * h * da
+        ev = cv * h**3 * (da / h - da_prev / h) / h if da_prev is not None else 0 * da
+        da_prev = da
+        rest_g = (af * gacc - am * ga) / (1 - am)
+        gx0 = gx + h * gv + h * h * (0.5 - beta) * ga + h * h * beta * rest_g + e + bp / gp * ev
+        gv0 = gv + h * (1 - gam) * ga + h * gam * rest_g + ev
+        gnew = s_inv @ (-k @ gx0)
+        ga = rest_g + cfac * gnew
+        gx, gv, gacc = gx0 + bp * gnew, gv0 + gp * gnew, gnew
+        x, v, a, aux = x1, v1, a1, aux1
+        y = sens @ x
+        y_lo, y_hi = min(y_lo, y), max(y_hi, y)
+        worst = max(worst, abs(sens @ gx))
+    print(json.dumps({"estimate": worst / (y_hi - y_lo), "range": y_hi - y_lo}))
+
+
+main()
