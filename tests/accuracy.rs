@@ -368,7 +368,11 @@ fn the_estimate_on_a_step_loaded_cantilever_is_that_of_an_independent_model_of_t
             .args([&rho.to_string(), "1e-4", "0.3"])
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let model: Value = serde_json::from_slice(&out.stdout).unwrap();
         let want = model["estimate"].as_f64().unwrap();
         assert!(
