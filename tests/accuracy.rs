@@ -382,6 +382,40 @@ fn the_estimate_on_a_step_loaded_cantilever_is_that_of_an_independent_model_of_t
     }
 }
 
+/// A linear response's estimate, relative to its range, does not depend on the load's
+/// size. The transport linearises the step by a finite difference; until session 35 its
+/// step was 1e-6 of the model's size, larger than the motion under a tip force of 1e-6 N
+/// (deflection 7e-9 m), and the tip (whose axial component, quadratic in the load, spans
+/// 3e-17 m) read 105 % over these 0.1 s where the same run under 1 N reads 3.8 %. Now the
+/// step is scaled on the run's motion: measured equal to 3e-4 (the 1 N run is slightly
+/// nonlinear); bound 1 %.
+#[test]
+fn the_estimate_of_a_linear_response_does_not_depend_on_the_size_of_the_load() {
+    let path = shipped_with(
+        "cantilever.toml",
+        "t_end = 1.0",
+        "t_end = 0.1",
+        "estimate-load-size",
+    );
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, text.replace("dt = 1e-3", "dt = 1e-4")).unwrap();
+    let est = |p: &str| {
+        let v = run_json(&[path.to_str().unwrap(), "--set", &format!("P={p}")]);
+        ["tip", "root_moment"].map(|s| v["time_error_by_sensor"][s].as_f64().unwrap())
+    };
+    let unit = est("1");
+    assert!(unit[0] > 1e-3 && unit[1] > 1e-3, "{unit:?}");
+    for p in ["1e-3", "1e-6"] {
+        let small = est(p);
+        for (a, b) in small.iter().zip(&unit) {
+            assert!(
+                (a / b - 1.0).abs() < 0.01,
+                "P = {p}: {small:?} against {unit:?} at P = 1"
+            );
+        }
+    }
+}
+
 #[test]
 fn samples_interpolated_between_steps_that_miss_the_output_grid_keep_the_schemes_error() {
     // Under `--accuracy` a step that does not divide the output interval is kept (the
