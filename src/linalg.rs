@@ -1216,15 +1216,21 @@ fn unit_scale(a: impl IntoIterator<Item = f64>) -> (f64, f64) {
     (1.0 / down, down)
 }
 
-/// The power of two nearest `x` (to the nearest exponent), or 1 where `x` is zero, not
-/// finite, or beyond 2^±1000 (where a power and its inverse would over- or underflow).
+/// The power of two nearest `x` (to the nearest exponent, see [`pow2_exponent`]).
 /// Scaling by it changes no mantissa.
 pub fn pow2_near(x: f64) -> f64 {
+    2f64.powi(pow2_exponent(x))
+}
+
+/// round(log2 |x|), clamped to ±1000 so that 2^e and its inverse stay normal (a matrix
+/// whose entries reach 1e306 is scaled as far as that allows, not left as it is); 0 where
+/// `x` is zero or not finite.
+pub fn pow2_exponent(x: f64) -> i32 {
     let e = x.abs().log2().round();
-    if e.is_finite() && e.abs() < 1000.0 {
-        2f64.powi(e as i32)
+    if e.is_finite() {
+        e.clamp(-1000.0, 1000.0) as i32
     } else {
-        1.0
+        0
     }
 }
 

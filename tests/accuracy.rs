@@ -31,13 +31,21 @@ fn warnings(v: &Value) -> Vec<String> {
 /// A shipped model with `from` replaced by `to` (which must occur), written to a file of
 /// its own under the temporary directory; the path is returned.
 fn shipped_with(model: &str, from: &str, to: &str, tag: &str) -> std::path::PathBuf {
+    shipped_with_all(model, &[(from, to)], tag)
+}
+
+/// [`shipped_with`] for several replacements, made in order.
+fn shipped_with_all(model: &str, edits: &[(&str, &str)], tag: &str) -> std::path::PathBuf {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(root.join("models").join(model)).unwrap();
-    assert!(text.contains(from), "{model} has no `{from}`");
+    let mut text = std::fs::read_to_string(root.join("models").join(model)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{model} has no `{from}`");
+        text = text.replace(from, to);
+    }
     let dir = std::env::temp_dir().join(format!("latdyn-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(model);
-    std::fs::write(&path, text.replace(from, to)).unwrap();
+    std::fs::write(&path, text).unwrap();
     path
 }
 
@@ -348,32 +356,26 @@ fn the_estimate_on_a_step_loaded_cantilever_is_that_of_an_independent_model_of_t
         eprintln!("SKIPPED: numpy (with h5py) is not installed");
         return;
     }
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     for rho in [0.3, 0.6, 0.9] {
-        let path = shipped_with(
+        let steps = format!("dt = 1e-4\nrho_inf = {rho}");
+        let path = shipped_with_all(
             "cantilever.toml",
-            "rhoA = \"rhoA\"\n",
-            "rhoA = \"rhoA\"\nrhoIy = 1e-4\nrhoIz = 1e-4\n",
+            &[
+                (
+                    "rhoA = \"rhoA\"\n",
+                    "rhoA = \"rhoA\"\nrhoIy = 1e-4\nrhoIz = 1e-4\n",
+                ),
+                ("t_end = 1.0", "t_end = 0.3"),
+                ("dt = 1e-3", &steps),
+            ],
             &format!("estimator-model-{rho}"),
         );
-        let text = std::fs::read_to_string(&path).unwrap();
-        let text = text
-            .replace("t_end = 1.0", "t_end = 0.3")
-            .replace("dt = 1e-3", &format!("dt = 1e-4\nrho_inf = {rho}"));
-        std::fs::write(&path, text).unwrap();
         let v = run_json(&[path.to_str().unwrap(), "--set", "P=1"]);
         let est = v["time_error_by_sensor"]["root_moment"].as_f64().unwrap();
-        let out = std::process::Command::new("python3")
-            .arg(root.join("tests/estimator_model.py"))
-            .args([&rho.to_string(), "1e-4", "0.3"])
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        let model = common::python_json(
+            "tests/estimator_model.py",
+            &[&rho.to_string(), "1e-4", "0.3"],
         );
-        let model: Value = serde_json::from_slice(&out.stdout).unwrap();
         let want = model["estimate"].as_f64().unwrap();
         assert!(
             (est / want - 1.0).abs() < 0.02,
@@ -391,14 +393,11 @@ fn the_estimate_on_a_step_loaded_cantilever_is_that_of_an_independent_model_of_t
 /// nonlinear); bound 1 %.
 #[test]
 fn the_estimate_of_a_linear_response_does_not_depend_on_the_size_of_the_load() {
-    let path = shipped_with(
+    let path = shipped_with_all(
         "cantilever.toml",
-        "t_end = 1.0",
-        "t_end = 0.1",
+        &[("t_end = 1.0", "t_end = 0.1"), ("dt = 1e-3", "dt = 1e-4")],
         "estimate-load-size",
     );
-    let text = std::fs::read_to_string(&path).unwrap();
-    std::fs::write(&path, text.replace("dt = 1e-3", "dt = 1e-4")).unwrap();
     let est = |p: &str| {
         let v = run_json(&[path.to_str().unwrap(), "--set", &format!("P={p}")]);
         ["tip", "root_moment"].map(|s| v["time_error_by_sensor"][s].as_f64().unwrap())

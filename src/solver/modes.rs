@@ -26,7 +26,7 @@
 
 use crate::assembly::{Assembler, Coeffs, DenseSink};
 use crate::joint::{self, State};
-use crate::linalg::{jacobi_scale, pow2_near, sym_eig, DenseLu, LinalgError};
+use crate::linalg::{jacobi_scale, pow2_exponent, pow2_near, sym_eig, DenseLu, LinalgError};
 use crate::model::Model;
 
 #[derive(Debug, thiserror::Error)]
@@ -358,18 +358,10 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
     // back at the end: the condensation and the refinement form products of entries
     // (g gᵀ/κ, Σ K φ φ) that left the range of double precision on a beam of EI = 1e200
     // or ρA = 1e-200, which was refused as "non-finite value in input"
-    let size = |a: &[f64]| a.iter().fold(0.0f64, |x, y| x.max(y.abs()));
-    // 2^−round(log2 x), within the normal range (pow2_near stops at 2^±1000)
-    let unit = |x: f64, max_exp: f64| {
-        if x > 0.0 {
-            2f64.powi(-x.log2().round().clamp(-max_exp, max_exp) as i32)
-        } else {
-            1.0
-        }
-    };
-    let k_unit = unit(size(k), 1020.0);
+    let (k_size, m_size) = (super::linear::norm_inf(k), super::linear::norm_inf(m));
+    let k_unit = 2f64.powi(-pow2_exponent(k_size));
     // an even power, so that the shapes' factor √m_unit is exact too
-    let m_half = unit(size(m).sqrt(), 510.0);
+    let m_half = 2f64.powi(-pow2_exponent(m_size) / 2);
     let m_unit = m_half * m_half;
     let mut k = symmetrised(k, n);
     let mut m = symmetrised(m, n);
@@ -615,22 +607,20 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
         out.push((unscale(lam), shape, unscale(worst), unscale(likely)));
     }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let sizes = format!(
-        "stiffness entries up to {:.1e}, mass entries up to {:.1e}",
-        size(&k) / k_unit,
-        size(&m) / m_unit
-    );
+    let sizes = || format!("stiffness entries up to {k_size:.1e}, mass entries up to {m_size:.1e}");
     if out.iter().take(count).any(|r| !r.0.is_finite()) {
         return Err(ModesError::OutOfRange(format!(
             "the model's ω² (stiffness over mass) leave the range of double precision \
-             ({sizes}): choose units nearer the model's size"
+             ({}): choose units nearer the model's size",
+            sizes()
         )));
     }
     if out.iter().take(count).any(|r| !r.2.is_finite()) {
         return Err(ModesError::OutOfRange(format!(
             "the modes cannot be resolved in double precision: their round-off estimate \
-             overflows ({sizes}), as when the stiffnesses span too many orders of \
-             magnitude (e.g. EI far above EA L²)"
+             overflows ({}), as when the stiffnesses span too many orders of \
+             magnitude (e.g. EI far above EA L²)",
+            sizes()
         )));
     }
     // (the refined subspace's top, past the wanted modes, may overflow: left out)
@@ -647,11 +637,10 @@ pub fn solve_pencil(k: &[f64], m: &[f64], n: usize, count: usize) -> Result<Mode
     // error of 0 is a zero-frequency mode only if that error is itself negligible on
     // this scale; otherwise the mode is unresolved (warned, frequency as computed)
     // (and K = 0 altogether: every mode is a free motion)
-    let k_max = k.iter().fold(0.0f64, |a, b| a.max(b.abs()));
     let lam_scale = out.iter().fold(0.0f64, |a, r| a.max(r.0.abs()));
     out.truncate(count);
     for (idx, (lam, mut z, worst, likely)) in out.into_iter().enumerate() {
-        let zero = k_max == 0.0 || (lam.abs() <= worst && worst <= ZERO_SCALE_REL * lam_scale);
+        let zero = k_size == 0.0 || (lam.abs() <= worst && worst <= ZERO_SCALE_REL * lam_scale);
         // an ω² farther from zero than its worst-case round-off is a vibration, and its
         // likely error is the one to report; one within it (but unresolved) keeps the bound
         let err = if lam.abs() > worst { likely } else { worst };

@@ -136,6 +136,22 @@ pub fn h5py_available() -> bool {
     ok
 }
 
+/// `python3 SCRIPT ARGS` (SCRIPT relative to the crate root), which must succeed; its
+/// stdout parsed as JSON.
+pub fn python_json(script: &str, args: &[&str]) -> serde_json::Value {
+    let out = std::process::Command::new("python3")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join(script))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{script} {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
 /// `a` and `b` hold the same campaign, bit for bit (tests/compare_campaigns.py); false
 /// (with a SKIPPED line) only where h5py is missing outside CI.
 pub fn assert_same_campaign(a: &Path, b: &Path) {
