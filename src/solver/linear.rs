@@ -254,6 +254,20 @@ impl NewtonSystem {
         self.evaluate_in(model, asm, s, c, factor, true).await
     }
 
+    /// Evaluate residual and Jacobian at `s` into `r` and `values` without factoring
+    /// them (the last factorization stays): for a caller that factors the values in a
+    /// factorization of its own ([`NewtonSystem::new_lu`]).
+    pub async fn assemble_async(
+        &mut self,
+        model: &Model,
+        asm: &Assembler,
+        s: &State,
+        c: Coeffs,
+    ) -> Result<AssemblyInfo, LinalgError> {
+        self.evaluate_matrix(model, asm, s, c, true, false, true)
+            .await
+    }
+
     async fn evaluate_in(
         &mut self,
         model: &Model,
@@ -263,9 +277,24 @@ impl NewtonSystem {
         factor: bool,
         batched: bool,
     ) -> Result<AssemblyInfo, LinalgError> {
+        self.evaluate_matrix(model, asm, s, c, factor, factor, batched)
+            .await
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    async fn evaluate_matrix(
+        &mut self,
+        model: &Model,
+        asm: &Assembler,
+        s: &State,
+        c: Coeffs,
+        assemble: bool,
+        factor: bool,
+        batched: bool,
+    ) -> Result<AssemblyInfo, LinalgError> {
         let t0 = Instant::now();
         let before = asm.stage_times();
-        let info = if factor {
+        let info = if assemble {
             // (a residual-only evaluation leaves the last factored values alone)
             self.values.iter_mut().for_each(|v| *v = 0.0);
             let mut sink = SparseSink {
