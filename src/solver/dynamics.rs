@@ -206,7 +206,8 @@ const BAND_KAPPAS: [f64; 1] = [3.0];
 /// band's displacement is measured, which spans a period of every mode the two capped
 /// bands hold (ωh ≳ 0.6). Measured in the estimator's model (tests/estimator_model.py
 /// with the caps): every 4 steps tightens the step-loaded cantilever's estimate from 2.0
-/// to 1.7 times the true error at ρ∞ = 0.9, dt = 1e-3, every 16 loosens it to 3.4 times.
+/// to 1.7 times the true error at ρ∞ = 0.9, dt = 1e-3 (at twice the cost), every 16
+/// loosens it to 3.2 times.
 const BAND_EVERY: usize = 8;
 
 /// Largest sensor deviation of a capped band's transported error, in units of the largest
@@ -292,9 +293,9 @@ struct TimeError {
 }
 
 /// Scratch of the band caps (`cap_error_bands`), kept between calls so the time loop
-/// does not allocate: the step's matrix values while the filters' are assembled, the
-/// second filter's values and factorization, and per filtered vector its mass product and
-/// two low-pass parts.
+/// does not allocate: the step's matrix values while the filters' are assembled, each
+/// assembled filter's values and factorization, the filtered vectors and their low-pass
+/// parts.
 #[derive(Default)]
 struct BandScratch {
     saved: Vec<f64>,
@@ -710,7 +711,8 @@ impl IntegState {
             + vecs.iter().map(|v| 8 * v.len()).sum::<usize>()
             + 32 * self.load_impulse.len()
             + 48 * self.drive_departure.len()
-            + te.acc.iter().map(|a| 40 * a.len()).sum::<usize>()
+            // acc, lo, hi and a band_max per band, per component
+            + te.acc.iter().map(|a| 8 * (4 + BAND_KAPPAS.len()) * a.len()).sum::<usize>()
     }
 }
 
@@ -1060,15 +1062,16 @@ impl<'m> Integrator<'m> {
     /// other. Modes the step barely resolves (ωh ≈ 1) and ρ∞ near 1 leaves undamped lose
     /// their phase within a run; their linearised error grew past the whole signal's
     /// range under a step load on a fine cantilever (22 times the true error at
-    /// ρ∞ = 0.9), and as a floor that no longer shrank as h² on the flapping blade. The
-    /// global cap (`cap_global_error`) holds only the sum to twice the sensors' ranges.
+    /// ρ∞ = 0.9). The global cap (`cap_global_error`) holds only the sum to twice the
+    /// sensors' ranges.
     /// There are no modes along a run; the bands are spatial filters, L_κ z =
     /// (M + κh²K)⁻¹ M z (`BAND_KAPPAS`), of the tangent at the converged state, with the
     /// mass product from the step's matrix and the second filter's (`band_filters`): one
     /// assembly and one factorization per call. The displacement is the sum of the
     /// steps' increments over the window (no rigid rotation wrapped, no static part), so
-    /// the bands see the vibration in them. Measured in the estimator's model on the
-    /// step-loaded cantilever: 1.2 to 2.0 times the true error where it read 3 to 16.
+    /// the bands see the vibration in them. Measured on the step-loaded cantilever
+    /// (README "a step load on a fine structure"): 0.63 to 2.0 times the true error where
+    /// it read 2.4 to 22 times.
     async fn cap_error_bands(&mut self, h: f64, ys: &[Vec<f64>]) {
         let model = self.model;
         let n = model.n_eq;
