@@ -340,6 +340,28 @@ fn the_estimate_matches_the_closed_form_error_of_a_linear_oscillator() {
     }
 }
 
+/// The shipped cantilever given a rotary inertia (1e-4), run for 0.3 s under its tip
+/// force of 1 N applied at t = 0, with `solver` (its `dt` and `output_dt` lines and what
+/// else the test sets) and with or without its tip sensor.
+fn step_loaded_cantilever(solver: &str, tip_sensor: bool, tag: &str) -> Value {
+    let mut edits = vec![
+        (
+            "rhoA = \"rhoA\"\n",
+            "rhoA = \"rhoA\"\nrhoIy = 1e-4\nrhoIz = 1e-4\n",
+        ),
+        ("t_end = 1.0", "t_end = 0.3"),
+        ("dt = 1e-3\noutput_dt = 0.01", solver),
+    ];
+    if !tip_sensor {
+        edits.push((
+            "[[sensors]]\nname = \"tip\"\ntype = \"node\"\nnode = \"tip\"\n",
+            "",
+        ));
+    }
+    let path = shipped_with_all("cantilever.toml", &edits, tag);
+    run_json(&[path.to_str().unwrap(), "--set", "P=1"])
+}
+
 /// The estimate on many modes at once, against an independent model of it: the shipped
 /// cantilever (8 elements, given a rotary inertia, its tip sensor left out: the model is
 /// linear and has no axial tip motion) under its tip force applied at t = 0, which excites
@@ -348,9 +370,10 @@ fn the_estimate_matches_the_closed_form_error_of_a_linear_oscillator() {
 /// modal-free matrix form on linear Hermite elements. Without the band caps both read
 /// 0.0426, 0.0819, 0.498 at ρ∞ = 0.3, 0.6, 0.9 (the model 0.0427, 0.0820, 0.499), 22×
 /// the truth at ρ∞ = 0.9; with them 0.04219, 0.03352, 0.03622 here against 0.04225,
-/// 0.03353, 0.03622 in the model (truth 0.028, 0.027, 0.022 against dt = 1e-6). Bound 2 %: the two element models differ
-/// (co-rotational with a 4-point mass rule, 1 % nonlinear at this load, against the
-/// linear closed forms), and latdyn moves its state by each band to read the sensor.
+/// 0.03353, 0.03622 in the model (truth 0.028, 0.027, 0.022 against dt = 1e-6). Bound
+/// 2 %: the two element models differ (co-rotational with a 4-point mass rule, 1 %
+/// nonlinear at this load, against the linear closed forms), and latdyn moves its state
+/// by each band to read the sensor.
 #[test]
 fn the_estimate_on_a_step_loaded_cantilever_is_that_of_an_independent_model_of_the_estimator() {
     if !common::h5py_available() {
@@ -358,24 +381,11 @@ fn the_estimate_on_a_step_loaded_cantilever_is_that_of_an_independent_model_of_t
         return;
     }
     for rho in [0.3, 0.6, 0.9] {
-        let steps = format!("dt = 1e-4\nrho_inf = {rho}");
-        let path = shipped_with_all(
-            "cantilever.toml",
-            &[
-                (
-                    "rhoA = \"rhoA\"\n",
-                    "rhoA = \"rhoA\"\nrhoIy = 1e-4\nrhoIz = 1e-4\n",
-                ),
-                ("t_end = 1.0", "t_end = 0.3"),
-                ("dt = 1e-3", &steps),
-                (
-                    "[[sensors]]\nname = \"tip\"\ntype = \"node\"\nnode = \"tip\"\n",
-                    "",
-                ),
-            ],
+        let v = step_loaded_cantilever(
+            &format!("dt = 1e-4\noutput_dt = 0.01\nrho_inf = {rho}"),
+            false,
             &format!("estimator-model-{rho}"),
         );
-        let v = run_json(&[path.to_str().unwrap(), "--set", "P=1"]);
         let est = v["time_error_by_sensor"]["root_moment"].as_f64().unwrap();
         let model = common::python_json(
             "tests/estimator_model.py",
@@ -430,20 +440,11 @@ fn the_estimate_of_a_linear_response_does_not_depend_on_the_size_of_the_load() {
 #[test]
 fn the_estimate_on_a_step_loaded_cantilever_is_within_three_times_its_true_error() {
     let at = |dt: &str| {
-        let steps = format!("dt = {dt}\noutput_dt = 1e-3\nrho_inf = 0.9");
-        let path = shipped_with_all(
-            "cantilever.toml",
-            &[
-                (
-                    "rhoA = \"rhoA\"\n",
-                    "rhoA = \"rhoA\"\nrhoIy = 1e-4\nrhoIz = 1e-4\n",
-                ),
-                ("t_end = 1.0", "t_end = 0.3"),
-                ("dt = 1e-3\noutput_dt = 0.01", &steps),
-            ],
+        step_loaded_cantilever(
+            &format!("dt = {dt}\noutput_dt = 1e-3\nrho_inf = 0.9"),
+            true,
             &format!("step-load-{dt}"),
-        );
-        run_json(&[path.to_str().unwrap(), "--set", "P=1"])
+        )
     };
     let fine = at("1e-5");
     for dt in ["1e-3", "1e-4"] {

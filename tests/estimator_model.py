@@ -12,8 +12,8 @@ of spatial frequency every 8 steps (the bands split by the low-pass filters
 L_k = (M + k h^2 K)^-1 M with k = beta (1 - alpha_f)/(1 - alpha_m), the step matrix's, and
 k = 3: the band I - L_1 and the band L_1 - L_3 each hold their share of the error's root
 moment to the largest root moment their share of the displacement over the 8 steps has
-shown), mapped to the root bending moment EI w''(0). Prints, as JSON, the largest |estimated deviation| of the root
-moment over the steps divided by the moment's range over the same steps (the figure
+shown), mapped to the root bending moment EI w''(0). Prints, as JSON, the largest
+|estimated deviation| of the root moment over the steps divided by the moment's range over the same steps (the figure
 `time_error_by_sensor` reports), and the range.
 
 usage: python3 estimator_model.py RHO_INF DT T_END [ELEMENTS EI RHOA RHOI L P]
@@ -112,7 +112,7 @@ def main():
             errors = list(originals)
             for band in range(2):
                 def part(z):
-                    low = [f @ z for f in filters]
+                    low = [lp @ z for lp in filters]
                     return z - low[0] if band == 0 else low[0] - low[1]
                 band_max[band] = max(band_max[band], abs(sens @ part(x - x_window)))
                 dev = abs(sens @ part(gx))

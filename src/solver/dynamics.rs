@@ -984,8 +984,7 @@ impl<'m> Integrator<'m> {
                     .evaluate_async(model, &self.asm, &self.trial, coeffs, true)
                     .await;
             }
-            self.te.r0.clone_from(&self.sys.r);
-            self.te.gen0.clone_from(&self.sys.gen);
+            self.stash_residual();
             let coeffs = Coeffs::dynamic(bp, gp, 1.0);
             // One solve with the step's iteration matrix: under modified Newton the
             // Jacobian of the step's first iterate, without ∂(M(q)a)/∂q. A second solve
@@ -1035,8 +1034,7 @@ impl<'m> Integrator<'m> {
                     gnew.copy_from_slice(&corr);
                 }
             }
-            std::mem::swap(&mut self.sys.r, &mut self.te.r0);
-            std::mem::swap(&mut self.sys.gen, &mut self.te.gen0);
+            self.restore_residual();
         }
         self.te.gs = corr;
         let te = &mut self.te;
@@ -1051,6 +1049,19 @@ impl<'m> Integrator<'m> {
             te.gv[k] = te.gv0[k] + gp * gnew[k];
         }
         te.gacc = gnew;
+    }
+
+    /// Keep the converged step's residual and generalized forces (`te.r0`, `te.gen0`)
+    /// across evaluations at other states or coefficients (the transport, the band
+    /// filters), and put them back: the sensors and the next step read them.
+    fn stash_residual(&mut self) {
+        self.te.r0.clone_from(&self.sys.r);
+        self.te.gen0.clone_from(&self.sys.gen);
+    }
+
+    fn restore_residual(&mut self) {
+        std::mem::swap(&mut self.sys.r, &mut self.te.r0);
+        std::mem::swap(&mut self.sys.gen, &mut self.te.gen0);
     }
 
     /// Cap the transported error band by band of spatial frequency, every `BAND_EVERY`
@@ -1122,8 +1133,7 @@ impl<'m> Integrator<'m> {
         let k2 = BAND_KAPPAS[0];
         b.saved.resize(self.sys.values.len(), 0.0);
         std::mem::swap(&mut self.sys.values, &mut b.saved);
-        self.te.r0.clone_from(&self.sys.r);
-        self.te.gen0.clone_from(&self.sys.gen);
+        self.stash_residual();
         let mut ok = true;
         for (j, kappa) in BAND_KAPPAS.iter().enumerate() {
             ok = ok
@@ -1149,8 +1159,7 @@ impl<'m> Integrator<'m> {
         }
         // the step's values, residual and forces back in place
         std::mem::swap(&mut self.sys.values, &mut b.saved);
-        std::mem::swap(&mut self.sys.r, &mut self.te.r0);
-        std::mem::swap(&mut self.sys.gen, &mut self.te.gen0);
+        self.restore_residual();
         if !ok {
             return false;
         }
@@ -1242,15 +1251,9 @@ impl<'m> Integrator<'m> {
             }
             if worst > 1.0 {
                 let keep = 1.0 / worst;
-                for (i, g) in (2..6).zip([0, 1, 2, 3]) {
+                let te = &mut self.te;
+                for (i, v) in (2..6).zip([&mut te.gx, &mut te.gv, &mut te.ga, &mut te.gacc]) {
                     part(b, band, i, &mut dx);
-                    let te = &mut self.te;
-                    let v = match g {
-                        0 => &mut te.gx,
-                        1 => &mut te.gv,
-                        2 => &mut te.ga,
-                        _ => &mut te.gacc,
-                    };
                     for (x, p) in v.iter_mut().zip(&dx) {
                         *x -= (1.0 - keep) * p;
                     }
