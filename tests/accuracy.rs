@@ -543,20 +543,28 @@ fn spin_up_with_accuracy() -> &'static Value {
     })
 }
 
+/// The spin-up beam over 12 s at dt = 0.01, run once for the estimate tests below.
+fn spin_up_at_a_hundredth() -> &'static Value {
+    static RUN: std::sync::OnceLock<Value> = std::sync::OnceLock::new();
+    RUN.get_or_init(|| {
+        run_json(&[
+            "models/spinup_beam.toml",
+            "--set",
+            "dt=0.01",
+            "--set",
+            "t_end=12",
+        ])
+    })
+}
+
 #[test]
 fn the_spin_up_estimate_is_its_true_error_not_a_third_of_it() {
     // The driven hub's rigid motion: the per-step sum had to leave its truncation error
     // out and then read 0.25-0.33 of the truth; the transport carries it through the
     // beam's dynamics. Truth: dt/8 (its own error 1/64). Measured at dt = 0.01: 2.26e-3
     // against 2.00e-3 (t_end = 20); at 0.005 1.07, 0.0025 1.05.
-    let base = run_json(&[
-        "models/spinup_beam.toml",
-        "--set",
-        "dt=0.01",
-        "--set",
-        "t_end=12",
-    ]);
-    let truth = history_error(&base, spin_up_reference(), "tip_deflection") * 64.0 / 63.0;
+    let base = spin_up_at_a_hundredth();
+    let truth = history_error(base, spin_up_reference(), "tip_deflection") * 64.0 / 63.0;
     let est = base["time_error_by_sensor"]["tip_deflection"]
         .as_f64()
         .unwrap();
@@ -572,14 +580,8 @@ fn the_hub_torque_of_a_driven_spin_up_gets_an_estimate_near_its_true_error() {
     // state moved by the transported error. Until session 37 it got no estimate (null).
     // Truth: dt/8 (its own error 1/64). Measured over 20 s: 1.07, 1.13, 1.29 times the
     // truth at dt = 0.005, 0.01, 0.02; the tip's own bounds hold it.
-    let base = run_json(&[
-        "models/spinup_beam.toml",
-        "--set",
-        "dt=0.01",
-        "--set",
-        "t_end=12",
-    ]);
-    let truth = history_error(&base, spin_up_reference(), "hub_torque") * 64.0 / 63.0;
+    let base = spin_up_at_a_hundredth();
+    let truth = history_error(base, spin_up_reference(), "hub_torque") * 64.0 / 63.0;
     let est = base["time_error_by_sensor"]["hub_torque"].as_f64().unwrap();
     assert!(
         est > 0.7 * truth && est < 1.5 * truth,
