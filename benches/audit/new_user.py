@@ -69,6 +69,12 @@ CASES = [
     ("models/rotating_cantilever.toml", ["omega=20", "t_end=3"], [1e-4, 3e-4], [None], 2.5e-5),
     ("models/rotating_cantilever.toml", ["omega=50", "t_end=3"], [1e-4, 3e-4], [None], 2.5e-5),
     ("models/rotating_cantilever.toml", ["omega=2", "t_end=3", "elements=4"], [1e-4, 1e-3], [None], 2.5e-5),
+    # session 38: rotors whose band caps now bind (the window in the hub's frame)
+    ("models/rotating_cantilever.toml", ["t_end=3"], [1e-4, 4e-4, 1e-3], [0.9, 1.0], 1.25e-5),
+    ("models/flapping_blade.toml", ["t_end=4"], [1e-3, 2e-3, 4e-3], [1.0], 1.25e-4),
+    ("models/flapping_blade.toml", ["omega=20", "t_end=4"], [1e-3, 2e-3], [None], 1.25e-4),
+    ("models/spinup_beam.toml", [], [0.005, 0.01, 0.02], [0.9], 6.25e-4),
+    ("models/spinup_beam.toml", ["ws=12", "Ts=6", "t_end=10"], [0.0025, 0.005, 0.01], [None], 3.125e-4),
 ]
 
 
