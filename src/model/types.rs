@@ -97,6 +97,18 @@ pub enum ChainLink {
     Hinge { dof: usize, hinge: usize },
 }
 
+impl ChainLink {
+    /// The coordinate whose rate drives this link.
+    pub fn dof(&self) -> usize {
+        match *self {
+            ChainLink::Translate { dof, .. }
+            | ChainLink::RotateFixedAxis { dof, .. }
+            | ChainLink::SpinComponent { dof, .. }
+            | ChainLink::Hinge { dof, .. } => dof,
+        }
+    }
+}
+
 /// What a body's origin and orientation are made of.
 #[derive(Clone, Debug)]
 pub struct Body {

@@ -308,11 +308,10 @@ struct TimeError {
     window_x: Vec<f64>,
     window_v0: Vec<f64>,
     window_steps: usize,
-    /// the body whose prescribed motion the whole model follows (`followed_body`), and
+    /// the body whose prescribed motion the whole model follows (`followed_body`), with
     /// the state at the window's start: the window's motion is then measured against
     /// that state carried rigidly along with the body
-    follow: Option<usize>,
-    window_start: Option<State>,
+    follow: Option<(usize, State)>,
     /// per capped band, per sensor, per component: the largest deviation a window's
     /// displacement in the band has caused
     band_max: Vec<Vec<Vec<f64>>>,
@@ -343,13 +342,7 @@ struct BandScratch {
 /// structure also held by the ground (the Mini-Mast bay) is not, and its window's motion
 /// stays the summed increments.
 fn followed_body(model: &Model) -> Option<usize> {
-    use crate::model::{ChainLink, NodeKin};
-    let link_dof = |l: &ChainLink| match *l {
-        ChainLink::Translate { dof, .. }
-        | ChainLink::RotateFixedAxis { dof, .. }
-        | ChainLink::SpinComponent { dof, .. }
-        | ChainLink::Hinge { dof, .. } => dof,
-    };
+    use crate::model::NodeKin;
     let free = |d: usize| matches!(model.dofs[d].mode, DofMode::Free);
     let mut moving = model
         .bodies
@@ -357,7 +350,7 @@ fn followed_body(model: &Model) -> Option<usize> {
         .enumerate()
         .filter(|(_, b)| !b.chain.is_empty());
     let (fb, body) = moving.next()?;
-    if moving.next().is_some() || body.chain.iter().any(|l| free(link_dof(l))) {
+    if moving.next().is_some() || body.chain.iter().any(|l| free(l.dof())) {
         return None;
     }
     let nodes_follow = model.node_kin.iter().all(|kin| match kin {
@@ -441,8 +434,7 @@ impl TimeError {
                 v0
             },
             window_steps: 0,
-            follow: followed_body(model),
-            window_start: followed_body(model).map(|_| s.clone()),
+            follow: followed_body(model).map(|b| (b, s.clone())),
             band_max: (0..=BAND_KAPPAS.len())
                 .map(|_| comps.iter().map(|&c| vec![0.0; c]).collect())
                 .collect(),
@@ -771,7 +763,7 @@ impl IntegState {
         ];
         state(&self.s)
             + state(&te.moved)
-            + te.window_start.as_ref().map_or(0, state)
+            + te.follow.as_ref().map_or(0, |(_, w)| state(w))
             + vecs.iter().map(|v| 8 * v.len()).sum::<usize>()
             + 32 * self.load_impulse.len()
             + 48 * self.drive_departure.len()
@@ -1208,9 +1200,10 @@ impl<'m> Integrator<'m> {
     fn follow_window(&mut self, z: &mut [Vec<f64>]) {
         use crate::math::*;
         let model = self.model;
-        let (Some(fb), Some(w0)) = (self.te.follow, self.te.window_start.as_mut()) else {
+        let Some((fb, w0)) = self.te.follow.as_mut() else {
             return;
         };
+        let fb = *fb;
         let s1 = &self.trial;
         let q = mat_mul(&s1.body_r[fb], &transpose(&w0.body_r[fb]));
         let (c0, c1) = (w0.body_x[fb], s1.body_x[fb]);

@@ -272,12 +272,9 @@ async fn consistent_velocity(
 fn joint_coordinates(model: &Model) -> impl Iterator<Item = (usize, bool)> + '_ {
     let hinges = model.hinges.iter().map(|h| (h.dof, true));
     let bodies = model.bodies.iter().flat_map(|b| {
-        b.chain.iter().map(|l| match *l {
-            ChainLink::Translate { dof, .. } => (dof, false),
-            ChainLink::RotateFixedAxis { dof, .. }
-            | ChainLink::SpinComponent { dof, .. }
-            | ChainLink::Hinge { dof, .. } => (dof, true),
-        })
+        b.chain
+            .iter()
+            .map(|l| (l.dof(), !matches!(l, ChainLink::Translate { .. })))
     });
     hinges.chain(bodies)
 }
