@@ -800,11 +800,13 @@ fn a_resumed_run_repeats_no_step_before_its_checkpoint_and_adds_at_most_its_budg
 fn a_resumed_run_whose_error_does_not_fall_sends_the_next_back_to_t_zero_at_its_step() {
     // A pendulum released 0.0116 rad from upright: the error of the first seconds is
     // amplified as the motion leaves the unstable equilibrium. The first run (0.02 s)
-    // reads 0.25; the second resumes it at about 3 s, and its estimate does not fall,
-    // because what grows is the kept part's error. So the third starts from t = 0 at the
-    // second's step (predicted for the whole run), and meets the target (measured: 1 500
-    // steps, estimate 2.2e-3, true 6.1e-5 against dt = 2e-5; before that rule the third
-    // run took the second's estimate for its own and 9 000 steps).
+    // reads 8.6e-3; the second resumes it at 0.96 s at 5.7e-3 s, and its estimate (0.50)
+    // does not fall, because what grows is the kept part's error. So the third starts from
+    // t = 0 at the second's step (predicted for the whole run), and meets the target
+    // (measured: 875 steps, estimate 1.93e-4 against a true 1.80e-4; before that rule the
+    // third run took the second's estimate for its own). Until session 39 this was the
+    // case at a target of 1e-2, when the first run read 0.25 (true 2.2e-3): the leading-
+    // term local error and the body's dead-load tangent read this motion 8-57× high.
     let sets = ["--set", "theta0=3.13", "--set", "t_end=5"];
     let reference =
         run_json(&[&["models/pendulum.toml"], &sets[..], &["--set", "dt=1e-4"]].concat());
@@ -812,7 +814,7 @@ fn a_resumed_run_whose_error_does_not_fall_sends_the_next_back_to_t_zero_at_its_
         &[
             &["models/pendulum.toml"],
             &sets[..],
-            &["--set", "dt=0.02", "--accuracy", "1e-2"],
+            &["--set", "dt=0.02", "--accuracy", "1e-3"],
         ]
         .concat(),
     );
@@ -823,8 +825,10 @@ fn a_resumed_run_whose_error_does_not_fall_sends_the_next_back_to_t_zero_at_its_
     assert_eq!(hist[2]["dt"], hist[1]["dt"], "{}", v["accuracy"]);
     let truth = history_error(&v, &reference, "angle");
     let est = v["time_error_estimate"].as_f64().unwrap();
+    // (the reference's own error, about 6e-8 of the range at dt = 1e-4, is far below
+    // the 7 % between them)
     assert!(
-        truth < 1e-2 && est <= 1e-2 && est >= truth,
+        truth < 1e-3 && est <= 1e-3 && est >= truth && est <= 3.0 * truth,
         "{truth:.3e} {est:.3e}"
     );
     assert!(warnings(&v).is_empty(), "{:?}", warnings(&v));
@@ -963,6 +967,39 @@ fn a_load_pulse_that_falls_between_the_steps_is_warned_and_refined_under_accurac
     let range = peak(&reference) - reference["sensors"]["tip_flap"]["min"][0].as_f64().unwrap();
     eprintln!("tip peak {} against {}", peak(&adaptive), peak(&reference));
     assert!((peak(&adaptive) - peak(&reference)).abs() <= 0.05 * range);
+}
+
+#[test]
+fn a_load_of_zero_force_and_moment_is_not_warned_for_the_impulse_its_factor_misses() {
+    // The same pulse switched off (`disturbance = 0`): the factor still falls between the
+    // steps, but a load of zero applies nothing to miss. Until session 39 it warned of
+    // 44.7 % of its impulse missed at dt = 0.08 and `--accuracy` counted that as error.
+    let zero = run_json(&[
+        "models/rotating_cantilever.toml",
+        "--set",
+        "t_end=2",
+        "--set",
+        "dt=0.08",
+        "--set",
+        "disturbance=0",
+    ]);
+    assert!(warnings(&zero).is_empty(), "{:?}", warnings(&zero));
+    assert!(zero["load_impulse_error"].is_null(), "{zero}");
+    // and the same step with the load on is still warned
+    let on = run_json(&[
+        "models/rotating_cantilever.toml",
+        "--set",
+        "t_end=2",
+        "--set",
+        "dt=0.08",
+    ]);
+    assert!(
+        warnings(&on)
+            .iter()
+            .any(|w| w.contains("too large for the loads")),
+        "{:?}",
+        warnings(&on)
+    );
 }
 
 #[test]

@@ -5,8 +5,9 @@ acceleration) on a linear Euler-Bernoulli cantilever of Hermite elements with co
 translational and rotary mass, loaded at its tip by a force applied at t = 0 (the start
 consistent: a_0 = M^-1 F), and beside it the estimate as the README and
 src/solver/dynamics.rs describe it, written from those formulas and not from the code:
-the local error e = c_q h^2 (aux_{n+1} - aux_n) in the coordinates and
-e_v = c_v h^3 (second difference of aux) in the velocities, carried from step to step by
+the local error on the first two steps e = c_q h^2 (aux_{n+1} - aux_n) in the
+coordinates and e_v = c_v h^3 (second difference of aux) in the velocities, from the
+third on the weighted sums of the last four aux that are exact for cubic accelerations, carried from step to step by
 the scheme's own linear recursion (exact here: the system is linear), capped band by band
 of spatial frequency every 8 steps (the bands split by the low-pass filters
 L_k = (M + k h^2 K)^-1 M with k = beta (1 - alpha_f)/(1 - alpha_m), the step matrix's, and
@@ -38,6 +39,25 @@ def main():
     cq = beta - 1 / 6 + 0.5 * (am - af)
     cv = 1 / 12 + (am - af) * (af - 0.5)
     cfac = (1 - af) / (1 - am)
+    # the local error's weights on the auxiliary accelerations a~_{n+1}, a~_n, a~_{n-1},
+    # a~_{n-2} (README "How it is computed"), with d = alpha_f - alpha_m, and on the
+    # changes da_n, da_{n-1}, da_{n-2}
+    d = af - am
+    q = af * af * d
+    wx = [
+        -(180 * q + 60 * af * d + 45 * d - 360 * beta + 38) / 360,
+        (180 * q - 35 * d - 120 * beta + 3) / 120,
+        -(180 * q - 60 * af * d - 55 * d - 12) / 120,
+        (180 * q - 120 * af * d - 15 * d - 7) / 360,
+    ]
+    wv = [
+        -(24 * q + 12 * af * d + 10 * d - 24 * gam + 9) / 24,
+        (72 * q + 12 * af * d - 6 * d - 24 * gam + 5) / 24,
+        -(72 * q - 12 * af * d - 18 * d - 5) / 24,
+        (24 * q - 12 * af * d - 2 * d - 1) / 24,
+    ]
+    ux = [wx[0], wx[0] + wx[1], -wx[3]]
+    uv = [wv[0], wv[0] + wv[1], -wv[3]]
 
     le = length / n_el
     ke = ei / le**3 * np.array([
@@ -78,7 +98,7 @@ def main():
     a = np.linalg.solve(m, f)
     aux = a.copy()
     gx, gv, ga, gacc = (np.zeros(n) for _ in range(4))
-    da_prev = None
+    da_prev = []
     bp, gp = h * h * beta * cfac, h * gam * cfac
     s_inv = np.linalg.inv(m + bp * k)
     # the band filters and the window of the band caps
@@ -96,9 +116,15 @@ def main():
         x1 = xp + bp * a1
         v1 = v + h * (1 - gam) * aux + h * gam * aux1
         da = aux1 - aux
-        e = cq * h * h * da
-        ev = cv * h**3 * (da / h - da_prev / h) / h if da_prev is not None else 0 * da
-        da_prev = da
+        if len(da_prev) == 2:
+            # third and later steps (all equal here): sums exact for cubic accelerations
+            ds = [da] + da_prev
+            ev = h * sum(u * d for u, d in zip(uv, ds))
+            e = h * h * sum(u * d for u, d in zip(ux, ds)) - beta / gam * h * ev
+        else:
+            e = cq * h * h * da
+            ev = cv * h**3 * (da / h - da_prev[0] / h) / h if da_prev else 0 * da
+        da_prev = [da] + da_prev[:1]
         rest_g = (af * gacc - am * ga) / (1 - am)
         gx0 = gx + h * gv + h * h * (0.5 - beta) * ga + h * h * beta * rest_g + e + bp / gp * ev
         gv0 = gv + h * (1 - gam) * ga + h * gam * rest_g + ev
