@@ -835,6 +835,42 @@ fn a_resumed_run_whose_error_does_not_fall_sends_the_next_back_to_t_zero_at_its_
 }
 
 #[test]
+fn a_hinged_body_near_upright_reads_its_error_and_takes_one_newton_iteration_per_step() {
+    // The pendulum released 0.0116 rad from upright: its error passes near zero as it
+    // turns back at the top and grows again, so its estimate needs the error transport's
+    // matrix right to about 1e-3. Until session 39 the body's tangent took its inertial
+    // force as a dead load turned by the hinge (m ω² d² of stiffness I θ̈ does not have):
+    // Newton took 4 937 iterations for these 4 000 steps and the estimate read 0.56× the
+    // error (4.8e-6 against 8.6e-6); with the leading-term local error, 15×. Measured now:
+    // 4 000 iterations, 1.005× (8.66e-6 against 8.62e-6 against dt = 3.9e-5, whose own
+    // error is 1e-3 of that). Bounds: 0.9-1.2×, and 5 % of extra iterations.
+    let sets = [
+        "models/pendulum.toml",
+        "--set",
+        "theta0=3.13",
+        "--set",
+        "t_end=5",
+        "--set",
+    ];
+    let reference = run_json(&[&sets[..], &["dt=3.90625e-5"]].concat());
+    let v = run_json(&[&sets[..], &["dt=0.00125"]].concat());
+    let truth = history_error(&v, &reference, "angle");
+    let est = v["time_error_estimate"].as_f64().unwrap();
+    assert!(
+        est >= 0.9 * truth && est <= 1.2 * truth,
+        "{est:.3e} {truth:.3e}"
+    );
+    let (steps, newton) = (
+        v["steps"].as_u64().unwrap(),
+        v["newton_iterations"].as_u64().unwrap(),
+    );
+    assert!(
+        newton as f64 <= 1.05 * steps as f64,
+        "{newton} for {steps} steps"
+    );
+}
+
+#[test]
 fn accuracy_out_of_range_is_a_usage_error() {
     // 1e-300: below 100 × the model's Newton tolerance, where the estimate stops falling
     // with the step (`accuracy_floor`; it ran a 21-million-step run on the blade)
