@@ -226,6 +226,15 @@ pub struct NodeLoad {
     pub scale: Option<crate::model::expr::TimeFunction>,
 }
 
+impl NodeLoad {
+    /// The time factor, where the load has one and applies something (a load of zero
+    /// force and moment has no impulse to miss, whatever its factor does).
+    pub fn time_factor(&self) -> Option<&crate::model::expr::TimeFunction> {
+        let applies = self.force.iter().chain(&self.moment).any(|c| *c != 0.0);
+        self.scale.as_ref().filter(|_| applies)
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub enum SensorKind {
     /// node displacement (3) and rotation vector of R_n (3), global frame

@@ -1686,7 +1686,7 @@ impl<'m> Integrator<'m> {
         let t1 = self.s.t;
         let t0 = t1 - h;
         for (l, acc) in self.model.loads.iter().zip(&mut self.load_impulse) {
-            let Some(f) = &l.scale else { continue };
+            let Some(f) = l.time_factor() else { continue };
             let fi = factor_integral(f, t0, t1, &mut acc.2);
             acc.0 += fi.sum - 0.5 * h * (fi.ends.0 + fi.ends.1);
             acc.1 += fi.abs;
@@ -2299,14 +2299,11 @@ impl<'m> Integrator<'m> {
         // steps' lines); a factor that stayed zero has neither, and nor has a load of zero
         // force and moment (the rotating cantilever at `disturbance = 0` and dt = 0.08
         // warned of 44.7 % of its pulse missed, and `--accuracy` counted that as error)
-        let applies = |l: &crate::model::NodeLoad| {
-            l.scale.is_some() && l.force.iter().chain(&l.moment).any(|c| *c != 0.0)
-        };
         let shares: Vec<(usize, f64, f64)> = self
             .load_impulse
             .iter()
             .enumerate()
-            .filter(|(k, _)| applies(&self.model.loads[*k]) && self.stats.steps > 0)
+            .filter(|(k, _)| self.model.loads[*k].time_factor().is_some() && self.stats.steps > 0)
             .map(|(k, (miss, total, _, off))| match *total > 0.0 {
                 true => (k, miss / total, off / total),
                 false => (k, 0.0, 0.0),
