@@ -1006,8 +1006,6 @@ fn time_error_ladder(
         if out_dt > 0.0 {
             let n_max = (out_dt / (4.0 * dt0 * ref_factor) + 1e-9).floor() as usize;
             for &tol in targets {
-                let meets =
-                    |f: &[(usize, f64)], n: usize| f.iter().find(|x| x.0 == n).map(|x| x.1 <= tol);
                 loop {
                     let n_fail = fixed
                         .iter()
@@ -1027,7 +1025,9 @@ fn time_error_ladder(
                         None if n_fail > 0 && n_fail < n_max => n_max,
                         None => break,
                     };
-                    if meets(&fixed, next).is_some() {
+                    // (a guard against a loop: a count between the largest failing one
+                    // and the smallest meeting one above it has not been run)
+                    if fixed.iter().any(|x| x.0 == next) {
                         break;
                     }
                     log(&format!(
