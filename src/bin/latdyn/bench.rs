@@ -1006,39 +1006,13 @@ fn time_error_ladder(
         if out_dt > 0.0 {
             let n_max = (out_dt / (4.0 * dt0 * ref_factor) + 1e-9).floor() as usize;
             for &tol in targets {
-                loop {
-                    let n_fail = fixed
-                        .iter()
-                        .filter(|x| x.1 > tol)
-                        .map(|x| x.0)
-                        .max()
-                        .unwrap_or(0);
-                    let n_meet = fixed
-                        .iter()
-                        .filter(|x| x.1 <= tol && x.0 > n_fail)
-                        .map(|x| x.0)
-                        .min();
-                    let next = match n_meet {
-                        Some(m) if m - n_fail > 1 => (n_fail + m) / 2,
-                        Some(_) => break,
-                        None if n_fail > 0 && 2 * n_fail <= n_max => 2 * n_fail,
-                        None if n_fail > 0 && n_fail < n_max => n_max,
-                        None => break,
-                    };
-                    // (a guard against a loop: a count between the largest failing one
-                    // and the smallest meeting one above it has not been run)
-                    if fixed.iter().any(|x| x.0 == next) {
-                        break;
-                    }
+                cheapest_on_grid(&mut fixed, tol, n_max, |next| {
                     log(&format!(
                         "time_error: {scene}: cheapest step meeting {tol:e}: probing {next} \
                          steps per output interval"
                     ));
-                    match probe(out_dt / next as f64, None) {
-                        Some(w) => fixed.push((next, w)),
-                        None => break,
-                    }
-                }
+                    probe(out_dt / next as f64, None)
+                });
             }
         }
         scenes.push(TimeErrorScene {
@@ -1050,6 +1024,46 @@ fn time_error_ladder(
         });
     }
     Ok((rows, scenes))
+}
+
+/// The fewest equal steps per output interval whose run meets `tol`, given the runs made
+/// (`fixed`: steps per interval, largest error) and `probe` to make another (None where
+/// it failed): bisection between the largest failing count and the smallest meeting one
+/// above it, or, where none meets, doubling from the largest failing count up to `n_max`
+/// (then `n_max` itself). The error is taken to fall as the count grows between two
+/// probes. Each probe is added to `fixed`; None where no count up to `n_max` meets it.
+fn cheapest_on_grid(
+    fixed: &mut Vec<(usize, f64)>,
+    tol: f64,
+    n_max: usize,
+    mut probe: impl FnMut(usize) -> Option<f64>,
+) -> Option<usize> {
+    loop {
+        let n_fail = fixed
+            .iter()
+            .filter(|x| x.1 > tol)
+            .map(|x| x.0)
+            .max()
+            .unwrap_or(0);
+        let n_meet = fixed
+            .iter()
+            .filter(|x| x.1 <= tol && x.0 > n_fail)
+            .map(|x| x.0)
+            .min();
+        let next = match n_meet {
+            Some(m) if m - n_fail > 1 => (n_fail + m) / 2,
+            Some(m) => return Some(m),
+            None if n_fail > 0 && 2 * n_fail <= n_max => 2 * n_fail,
+            None if n_fail > 0 && n_fail < n_max => n_max,
+            None => return None,
+        };
+        // (a guard against a loop: a count between the largest failing one and the
+        // smallest meeting one above it has not been run)
+        if fixed.iter().any(|x| x.0 == next) {
+            return n_meet;
+        }
+        fixed.push((next, probe(next)?));
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1387,6 +1401,46 @@ pub fn plot(r: &BenchReport, out: &Path) -> Result<(), crate::plot::PlotError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_grid_search_finds_the_fewest_steps_per_interval_that_meet_the_target() {
+        // a second-order error, 1 at one step per interval: e(n) = 1/n², so 1e-2 is met
+        // from n = 10 on
+        let err = |n: usize| 1.0 / (n * n) as f64;
+        // between two rungs of a halving ladder (4 fails, 16 meets): bisection finds 10
+        // in a few probes, each a count between the bracket's ends
+        let mut fixed = vec![(1, err(1)), (4, err(4)), (16, err(16))];
+        let mut probes = Vec::new();
+        let n = cheapest_on_grid(&mut fixed, 1e-2, 1000, |n| {
+            probes.push(n);
+            Some(err(n))
+        });
+        assert_eq!(n, Some(10), "probes {probes:?}");
+        assert!(probes.iter().all(|&p| p > 4 && p < 16), "{probes:?}");
+        assert!(probes.len() <= 4, "{probes:?}");
+        // no rung meets: doubling from the finest failing one, then bisection
+        let mut fixed = vec![(2, err(2))];
+        let n = cheapest_on_grid(&mut fixed, 1e-2, 1000, |n| Some(err(n)));
+        assert_eq!(n, Some(10));
+        // the target out of reach below n_max: None, after probing n_max itself
+        let mut probes = Vec::new();
+        let n = cheapest_on_grid(&mut vec![(2, err(2))], 1e-6, 100, |n| {
+            probes.push(n);
+            Some(err(n))
+        });
+        assert_eq!(n, None);
+        assert_eq!(probes.last(), Some(&100), "{probes:?}");
+        // a probe whose run failed ends the search without a result
+        assert_eq!(
+            cheapest_on_grid(&mut vec![(2, 1.0)], 1e-2, 1000, |_| None),
+            None
+        );
+        // a rung that meets it already with nothing coarser failing next to it
+        assert_eq!(
+            cheapest_on_grid(&mut vec![(9, err(9)), (10, err(10))], 1e-2, 1000, |_| None),
+            Some(10)
+        );
+    }
 
     #[test]
     fn hermite_reference_reproduces_the_published_rotating_beam_table() {
