@@ -987,7 +987,7 @@ fn time_error_ladder(
                 }
             }
         };
-        // steps per output interval of each fixed run, and whether it met each target
+        // steps per output interval of each fixed run, and its largest pointwise error
         let out_dt = m_ref.solver.output_dt;
         let per_interval = |dt: f64| (out_dt / dt - 1e-9).ceil().max(1.0) as usize;
         let mut fixed: Vec<(usize, f64)> = Vec::new();
@@ -1001,7 +1001,8 @@ fn time_error_ladder(
         // interval whose run meets it, found between the ladder's rungs by bisection
         // (the error taken to fall as the step does between two probes), where the
         // ladder has no rung meeting it by doubling, down to 4 times the reference's step
-        // (whose own error is then a sixteenth of the probe's at second order). The
+        // (whose own error is then a sixteenth of the probe's at second order, a quarter
+        // at the blade's first order below 1e-3 s). The
         // halving ladder's cheapest rung can cost up to twice that step.
         if out_dt > 0.0 {
             let n_max = (out_dt / (4.0 * dt0 * ref_factor) + 1e-9).floor() as usize;
@@ -1435,7 +1436,7 @@ mod tests {
             cheapest_on_grid(&mut vec![(2, 1.0)], 1e-2, 1000, |_| None),
             None
         );
-        // a rung that meets it already with nothing coarser failing next to it
+        // a failing count next to a meeting one: that one, with no probe
         assert_eq!(
             cheapest_on_grid(&mut vec![(9, err(9)), (10, err(10))], 1e-2, 1000, |_| None),
             Some(10)
