@@ -8,16 +8,15 @@ src/solver/dynamics.rs describe it, written from those formulas and not from the
 the local error on the first two steps e = c_q h^2 (aux_{n+1} - aux_n) in the
 coordinates and e_v = c_v h^3 (second difference of aux) in the velocities, from the
 third on the weighted sums of the last four aux that are exact for cubic accelerations, carried from step to step by
-the scheme's own linear recursion (exact here: the system is linear), and read every 8
-steps and at the last, capped band by band of spatial frequency (the bands split by the
-low-pass filters L_k = (M + k h^2 K)^-1 M with k = beta (1 - alpha_f)/(1 - alpha_m), the
-step matrix's, and k = 3, 30, 300: the bands I - L_1, L_1 - L_3, L_3 - L_30 and
-L_30 - L_300 each hold their share of the error's root moment to the largest root moment
-their share of the displacement over a window of those steps has shown; the carried error
-itself is left as the recursion makes it), mapped to the root bending moment EI w''(0).
-Prints, as JSON, the largest |estimated deviation| of the root moment over the readings
-divided by the moment's range over the steps (the figure `time_error_by_sensor`
-reports), and the range.
+the scheme's own linear recursion (exact here: the system is linear), capped band by
+band of spatial frequency every 8 steps and at the last (the bands split by the low-pass
+filters L_k = (M + k h^2 K)^-1 M with k = beta (1 - alpha_f)/(1 - alpha_m), the step
+matrix's, and k = 3, 30, 300: the bands I - L_1, L_1 - L_3, L_3 - L_30 and L_30 - L_300
+each hold their share of the error's root moment to the largest root moment their share
+of the displacement over the window of those steps has shown), and read there, mapped to
+the root bending moment EI w''(0). Prints, as JSON, the largest |estimated deviation| of
+the root moment over the readings divided by the moment's range over the steps (the
+figure `time_error_by_sensor` reports), and the range.
 
 usage: python3 estimator_model.py RHO_INF DT T_END [ELEMENTS EI RHOA RHOI L P]
 """
@@ -137,9 +136,9 @@ def main():
         y = sens @ x
         y_lo, y_hi = min(y_lo, y), max(y_hi, y)
         if (step + 1) % every == 0 or step + 1 == steps:
-            # every band is cut from the error as it came from the transport, into what
-            # the sensor reads
-            read = gx
+            # every band is cut from the error as it came from the transport
+            originals = [gx, gv, ga, gacc]
+            errors = list(originals)
             for band in range(len(filters)):
                 def part(z):
                     low = [lp @ z for lp in filters]
@@ -148,9 +147,10 @@ def main():
                 dev = abs(sens @ part(gx))
                 if dev > band_max[band]:
                     keep = band_max[band] / dev
-                    read = read - (1 - keep) * part(gx)
+                    errors = [e - (1 - keep) * part(z) for e, z in zip(errors, originals)]
+            gx, gv, ga, gacc = errors
             x_window = x.copy()
-            worst = max(worst, abs(sens @ read))
+            worst = max(worst, abs(sens @ gx))
     print(json.dumps({"estimate": worst / (y_hi - y_lo), "range": y_hi - y_lo}))
 
 
