@@ -2063,13 +2063,21 @@ impl<'m> Integrator<'m> {
         fraction.map(|f| f.clamp(1e-6, 1.0))
     }
 
+    /// Whether hinge `h`, free in `st`, locks there: by its lock time, by its angle
+    /// (crossed since the step's start, `prev_q`).
+    fn lock_reached(&self, h: &crate::model::Hinge, st: &State) -> (bool, bool) {
+        (
+            h.lock_time.is_some_and(|tl| st.t >= tl - 1e-12),
+            h.reaches_lock_angle(self.prev_q[h.dof], st.q[h.dof]),
+        )
+    }
+
     /// Whether `check_locks` will lock a hinge at the end of the step just converged.
     fn lock_due(&self) -> bool {
         let st = &self.trial;
         self.model.hinges.iter().enumerate().any(|(ih, h)| {
-            !st.locked[ih]
-                && (h.lock_time.is_some_and(|tl| st.t >= tl - 1e-12)
-                    || h.reaches_lock_angle(self.prev_q[h.dof], st.q[h.dof]))
+            let (by_time, by_angle) = self.lock_reached(h, st);
+            !st.locked[ih] && (by_time || by_angle)
         })
     }
 
@@ -2082,9 +2090,7 @@ impl<'m> Integrator<'m> {
             if self.s.locked[ih] {
                 continue;
             }
-            let th = self.s.q[h.dof];
-            let by_time = h.lock_time.is_some_and(|tl| self.s.t >= tl - 1e-12);
-            let by_angle = h.reaches_lock_angle(self.prev_q[h.dof], th);
+            let (by_time, by_angle) = self.lock_reached(h, &self.s);
             if by_time || by_angle {
                 if let (true, Some(la)) = (by_angle, h.lock_angle) {
                     self.s.q[h.dof] = la;
