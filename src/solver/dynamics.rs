@@ -1504,8 +1504,8 @@ impl<'m> Integrator<'m> {
     /// A driver reaction is the driven coordinate's row of the residual, which holds the
     /// accelerations too: it is read from one residual evaluation at the moved state with
     /// the accelerations moved by their error as well (the exact solution satisfies the
-    /// free rows, and its driven rows are its reactions), on the steps that reach an
-    /// output sample. Until session 37 reactions got
+    /// free rows, and its driven rows are its reactions), at each reading of the error
+    /// (`cap_error_bands`). Until session 37 reactions got
     /// no estimate, and the spin-up beam at ws = 10, EI = 5e3, dt = 0.01 reported a hub
     /// torque 1.1 % off with no warning (its tip's estimate read 0.83 %).
     async fn global_sensor_error(&mut self, ys: &[Vec<f64>], dys: &mut [Vec<f64>]) {
@@ -1998,12 +1998,12 @@ impl<'m> Integrator<'m> {
         // a reading at the last step, and at a step after which a hinge locks: a lock's
         // snap peaks the error between readings (the Mini-Mast's first lock read 0.21 of
         // its true error with readings every `BAND_EVERY` steps alone)
-        let last = self.trial.t >= t_end - 1e-9 * t_end.abs().max(1.0) || self.lock_due();
-        if self.cap_error_bands(h, &ys, last).await {
+        let read = self.trial.t >= t_end - 1e-9 * t_end.abs().max(1.0) || self.lock_due();
+        // (between readings `dys` stays as `local_error` left it, empty: the step adds
+        // only the sensors' ranges)
+        if self.cap_error_bands(h, &ys, read).await {
             self.global_sensor_error(&ys, &mut dys).await;
             self.cap_global_error(&ys, &mut dys);
-        } else {
-            dys.iter_mut().flatten().for_each(|d| *d = f64::NAN);
         }
         self.record_step_error(&ys, &dys);
         // (no copy: the oldest change's buffer takes the next step's)
