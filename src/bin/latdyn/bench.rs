@@ -32,6 +32,11 @@ pub struct BenchOptions {
     pub only: Vec<String>,
     /// threads for the ensemble rows
     pub threads: usize,
+    /// `--accuracy` targets of problem `accuracy`
+    pub targets: Vec<f64>,
+    /// scenes of problems `time_error` and `accuracy` (empty: all of
+    /// `TIME_ERROR_SCENES`)
+    pub scenes: Vec<String>,
 }
 
 /// The problem names, in report order.
@@ -780,8 +785,17 @@ fn history_errors(
         .collect()
 }
 
-/// `--accuracy` targets of the time-error ladder (problem `accuracy`).
-const ACCURACY_TARGETS: [f64; 1] = [1e-2];
+/// `--accuracy` targets of the time-error ladder (problem `accuracy`) unless `--target`
+/// names others.
+pub const ACCURACY_TARGETS: [f64; 1] = [1e-2];
+
+/// The scenes of the time-error ladder (`--scene`), in report order.
+pub const TIME_ERROR_SCENES: [&str; 4] = [
+    "rotating_cantilever",
+    "spinup_beam",
+    "flapping_blade",
+    "minimast_bay",
+];
 
 /// The four scenes of issue 14 at their shipped mesh: fixed steps from 8× to 1/4 of the
 /// base step (`Scene::dt`, the shipped step until session 23; 1/2 with `--quick`; none
@@ -853,6 +867,7 @@ fn time_error_ladder(
             finer: &[],
         },
     ];
+    debug_assert_eq!(SCENES.map(|s| s.name), TIME_ERROR_SCENES);
     let problem = "time_error";
     let factors: &[f64] = if opts.quick {
         &[4.0, 2.0, 1.0, 0.5]
@@ -862,6 +877,9 @@ fn time_error_ladder(
     let mut rows = Vec::new();
     let mut scenes = Vec::new();
     for sc in &SCENES {
+        if !opts.scenes.is_empty() && !opts.scenes.iter().any(|s| s == sc.name) {
+            continue;
+        }
         let (scene, sensors) = (sc.name, sc.sensors);
         let (ref_factor, finer) = if opts.quick {
             (0.25, &[][..])
@@ -920,11 +938,7 @@ fn time_error_ladder(
         }
         let largest = cases.first().map_or(dt0, |c| c.0);
         // (minutes each where a sensor carries many modes: only when asked for)
-        let targets: &[f64] = if with_accuracy {
-            &ACCURACY_TARGETS
-        } else {
-            &[]
-        };
+        let targets: &[f64] = if with_accuracy { &opts.targets } else { &[] };
         for &tol in targets {
             cases.push((largest, Some(tol)));
         }
@@ -1319,8 +1333,15 @@ fn time_error_markdown(r: &BenchReport) -> String {
             ));
         }
         s.push('\n');
-        // the cost of an accuracy target against the cheapest fixed step meeting it
-        for tol in ACCURACY_TARGETS {
+        // the cost of each accuracy target the scene ran against the cheapest fixed step
+        // meeting it
+        let mut targets: Vec<f64> = Vec::new();
+        for row in r.time_error.iter().filter(|x| x.scene == sc.scene) {
+            if let Some(a) = row.accuracy.filter(|a| !targets.contains(a)) {
+                targets.push(a);
+            }
+        }
+        for tol in targets {
             let worst = |rows: &[&TimeErrorRow]| {
                 rows.iter().map(|x| x.true_pointwise).fold(0.0f64, f64::max)
             };
@@ -1402,6 +1423,60 @@ pub fn plot(r: &BenchReport, out: &Path) -> Result<(), crate::plot::PlotError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_report_prices_every_target_a_scene_ran_against_its_cheapest_fixed_step() {
+        let row = |dt: f64, accuracy: Option<f64>, steps: usize, err: f64| TimeErrorRow {
+            scene: "flapping_blade".into(),
+            dt,
+            accuracy,
+            wall_s: steps as f64 * 1e-4,
+            steps,
+            sensor: "tip".into(),
+            estimate: err,
+            true_pointwise: err,
+            true_extremes: err,
+            warned: false,
+        };
+        let r = BenchReport {
+            latdyn_version: "test".into(),
+            machine: "test".into(),
+            quick: false,
+            wall_s: 0.0,
+            problems: Vec::new(),
+            throughput: Vec::new(),
+            // fixed steps: 1000 steps 4e-2 off, 2000 steps 1e-2, 4000 steps 2.5e-3; two
+            // targets, each met by its accuracy run
+            time_error: vec![
+                row(0.01, None, 1000, 4e-2),
+                row(0.005, None, 2000, 1e-2),
+                row(0.0025, None, 4000, 2.5e-3),
+                row(0.01, Some(3e-2), 2600, 2.0e-2),
+                row(0.01, Some(5e-3), 5200, 3.0e-3),
+            ],
+            time_error_scenes: vec![TimeErrorScene {
+                scene: "flapping_blade".into(),
+                reference_dt: 1e-4,
+                reference_steps: 100_000,
+                reference_wall_s: 1.0,
+                failed: Vec::new(),
+            }],
+        };
+        let md = time_error_markdown(&r);
+        assert!(
+            md.contains("`--accuracy 3e-2`: largest pointwise error 2.00e-2 (met), 2600 steps")
+                && md.contains("dt = 0.005 s, 2000 steps")
+                && md.contains("1.30 in steps"),
+            "{md}"
+        );
+        assert!(
+            md.contains("`--accuracy 5e-3`: largest pointwise error 3.00e-3 (met), 5200 steps")
+                && md.contains("dt = 0.0025 s, 4000 steps")
+                && md.contains("1.30 in steps"),
+            "{md}"
+        );
+        assert!(!md.contains("--accuracy 1e-2"), "{md}");
+    }
 
     #[test]
     fn the_grid_search_finds_the_fewest_steps_per_interval_that_meet_the_target() {

@@ -63,6 +63,14 @@ pub(crate) struct BenchArgs {
     /// minimast, time_error, accuracy (not in a bare `bench`: ~35 min), ensemble
     #[arg(long = "only", value_name = "PROBLEM")]
     pub(crate) only: Vec<String>,
+    /// `--accuracy` targets of problem `accuracy` (repeatable; default 1e-2): each scene's
+    /// `--accuracy` run and its cheapest fixed step meeting the target, per target
+    #[arg(long = "target", value_name = "TOL", value_parser = parse_accuracy)]
+    pub(crate) targets: Vec<f64>,
+    /// scenes of problems `time_error` and `accuracy` (repeatable; default all):
+    /// rotating_cantilever, spinup_beam, flapping_blade, minimast_bay
+    #[arg(long = "scene", value_name = "SCENE")]
+    pub(crate) scenes: Vec<String>,
     /// directory of the shipped models
     #[arg(long, default_value = "models")]
     pub(crate) models: PathBuf,
