@@ -31,10 +31,17 @@ pub(crate) fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         quick: args.quick,
         only: args.only.clone(),
         threads,
+        // (a target named twice is run once)
         targets: if args.targets.is_empty() {
             bench::ACCURACY_TARGETS.to_vec()
         } else {
-            args.targets.clone()
+            let mut t: Vec<f64> = Vec::new();
+            for &a in &args.targets {
+                if !t.contains(&a) {
+                    t.push(a);
+                }
+            }
+            t
         },
         scenes: args.scenes.clone(),
     };
