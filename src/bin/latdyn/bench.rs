@@ -1463,18 +1463,18 @@ mod tests {
             }],
         };
         let md = time_error_markdown(&r);
-        assert!(
-            md.contains("`--accuracy 3e-2`: largest pointwise error 2.00e-2 (met), 2600 steps")
-                && md.contains("dt = 0.005 s, 2000 steps")
-                && md.contains("1.30 in steps"),
-            "{md}"
-        );
-        assert!(
-            md.contains("`--accuracy 5e-3`: largest pointwise error 3.00e-3 (met), 5200 steps")
-                && md.contains("dt = 0.0025 s, 4000 steps")
-                && md.contains("1.30 in steps"),
-            "{md}"
-        );
+        // each target against the cheapest fixed step whose error meets it: 2 000 steps
+        // for 3e-2 (not 1 000, 4e-2 off), 4 000 for 5e-3
+        for line in [
+            "`--accuracy 3e-2`: largest pointwise error 2.00e-2 (met), 2600 steps, 0.260 s; \
+             cheapest fixed step meeting 3e-2: dt = 0.005 s, 2000 steps, 0.200 s; cost ratio \
+             1.30 in wall time, 1.30 in steps.",
+            "`--accuracy 5e-3`: largest pointwise error 3.00e-3 (met), 5200 steps, 0.520 s; \
+             cheapest fixed step meeting 5e-3: dt = 0.0025 s, 4000 steps, 0.400 s; cost ratio \
+             1.30 in wall time, 1.30 in steps.",
+        ] {
+            assert!(md.contains(line), "{line}\nnot in\n{md}");
+        }
         assert!(!md.contains("--accuracy 1e-2"), "{md}");
     }
 
