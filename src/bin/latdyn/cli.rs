@@ -67,9 +67,9 @@ pub(crate) struct BenchArgs {
     /// `--accuracy` run and its cheapest fixed step meeting the target, per target
     #[arg(long = "target", value_name = "TOL", value_parser = parse_accuracy)]
     pub(crate) targets: Vec<f64>,
-    /// scenes of problems `time_error` and `accuracy` (repeatable; default all):
-    /// rotating_cantilever, spinup_beam, flapping_blade, minimast_bay
-    #[arg(long = "scene", value_name = "SCENE")]
+    /// scenes of problems `time_error` and `accuracy` (repeatable; default all)
+    #[arg(long = "scene", value_name = "SCENE",
+          value_parser = clap::builder::PossibleValuesParser::new(crate::bench::TIME_ERROR_SCENES))]
     pub(crate) scenes: Vec<String>,
     /// directory of the shipped models
     #[arg(long, default_value = "models")]
