@@ -506,6 +506,46 @@ pub enum MergeError {
     Interrupted(String),
 }
 
+/// Why a shard's stored parameter values cannot be its variants' (`None` if they can):
+/// a value that is not finite (compiled parameters always are), or a varied or `--set`
+/// parameter whose value is not the one the campaign's definition gives that variant.
+/// `merge` copies the values as stored, so an edited table would label the samples
+/// wrongly.
+fn parameter_mismatch(f: &CampaignFile) -> Option<String> {
+    let column = |name: &str| f.parameter_names.iter().position(|n| n == name);
+    for (row, &g) in f.global_index.iter().enumerate() {
+        let values = &f.parameter_values[row];
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Some(format!(
+                "/parameters/values of variant {g}: `{}` is {}",
+                f.parameter_names[k], values[k]
+            ));
+        }
+        let Some(defined) = f.info.variants.get(g) else {
+            return Some(format!("variant {g} has no row in /campaign/variants"));
+        };
+        let given = f.info.set.iter().map(|(n, v)| (n.as_str(), *v)).chain(
+            f.info
+                .varied
+                .iter()
+                .map(String::as_str)
+                .zip(defined.iter().copied()),
+        );
+        for (name, v) in given {
+            if let Some(k) = column(name) {
+                if values[k] != v {
+                    return Some(format!(
+                        "/parameters/values of variant {g}: `{name}` is {} where the \
+                         campaign's definition gives {v}",
+                        values[k]
+                    ));
+                }
+            }
+        }
+    }
+    None
+}
+
 /// Merge the shard files `inputs` of one campaign into `target` (see README "Campaigns
 /// on a cluster"): every input must carry the same `campaign_hash`, and no global index
 /// may be in two of them. The merged file has the layout of a single-process sweep of
@@ -569,7 +609,21 @@ pub fn merge(
                     }
                 )));
             }
+            Some(f0) if f0.parameter_names != f.parameter_names => {
+                return Err(MergeError::Refused(format!(
+                    "{}: /parameters/names differ from those of {} (the same campaign \
+                     compiles the same parameters: was the file edited?)",
+                    p.display(),
+                    f0.path.display()
+                )));
+            }
             Some(_) => {}
+        }
+        if let Some(why) = parameter_mismatch(&f) {
+            return Err(MergeError::Refused(format!(
+                "{}: {why} (was the file edited?)",
+                p.display()
+            )));
         }
         let mut completed = 0;
         for (row, &g) in f.global_index.iter().enumerate() {

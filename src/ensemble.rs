@@ -46,13 +46,18 @@ pub enum EnsembleError {
     Model(#[from] model::ModelError),
     #[error(transparent)]
     Output(#[from] OutputError),
-    #[error("{0}")]
+    // (a field of megabytes in a --variants CSV is cut in the message)
+    #[error("{}", model::elide_long_words(.0))]
     Invalid(String),
     /// A problem of one variant (its model does not compile with its values, or it does
     /// not fit the others): `at` names the variant, by its index and values (see
     /// [`Origin::name`] for where the user gave them), `message` is the problem (a model
     /// error keeps the model's file, line and field).
-    #[error("{at}: {message}")]
+    #[error(
+        "{}: {}",
+        model::elide_long_words(at),
+        model::elide_long_words(message)
+    )]
     Variant {
         index: usize,
         at: String,

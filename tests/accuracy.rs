@@ -896,6 +896,39 @@ fn accuracy_out_of_range_is_a_usage_error() {
     }
 }
 
+/// An output interval longer than the run ends at t_end, and the steps spread over
+/// that span: the stderr note must count those steps (session 44: it counted them over
+/// the whole output interval, "7 equal steps" for a run of 3, and for an interval of
+/// 1e308 s printed a saturated 18446744073709551615).
+#[test]
+fn the_spread_note_counts_the_steps_the_run_takes_when_the_output_interval_outlasts_it() {
+    let note_and_steps = |t_end: &str| {
+        let out = latdyn(&[
+            "run",
+            "models/rotating_cantilever.toml",
+            "--set",
+            &format!("t_end={t_end}"),
+            "--set",
+            "dt=0.0015",
+            "--json",
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        (err, v["steps"].as_u64().unwrap())
+    };
+    // 0.0045 s is three steps of 0.0015 s: nothing to note
+    let (err, steps) = note_and_steps("0.0045");
+    assert_eq!(steps, 3);
+    assert!(!err.contains("does not divide"), "{err}");
+    // 0.005 s is four equal steps of 1.25e-3 s, as the note says
+    let (err, steps) = note_and_steps("0.005");
+    assert_eq!(steps, 4);
+    assert!(
+        err.contains("the run's span t_end = 5e-3 s") && err.contains("4 equal steps of 1.25"),
+        "{err}"
+    );
+}
+
 #[test]
 fn a_step_that_does_not_divide_the_output_interval_is_spread_evenly_not_ended_by_a_sliver() {
     // dt = 0.00111111111 leaves 1e-11 s of each 0.01 s output interval: taken as a step

@@ -160,9 +160,10 @@ fn unreachable_tolerance_statics_stops_at_the_roundoff_floor() {
 /// A hinge or body axis with huge components ([1e308, 1e308, 0]) used to overflow its
 /// norm and become the zero vector (the hinge then acted as a clamp); it must give the
 /// same axis as [1, 1, 0]. The pendulum's rotation axis is turned into the x-y diagonal;
-/// its frequency (gravity along z) must be the same to round-off either way.
+/// its frequency (gravity along z) must be the same to round-off either way, and so
+/// must it with tiny and subnormal components.
 #[test]
-fn huge_axis_components_normalise_without_overflow() {
+fn huge_tiny_and_subnormal_axis_components_normalise_without_overflow() {
     let base = std::fs::read_to_string(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pendulum.toml"),
     )
@@ -176,9 +177,18 @@ fn huge_axis_components_normalise_without_overflow() {
             .unwrap()
             .frequencies_hz[0]
     };
-    let (a, b) = (freq("[1e308, 1e308, 0]"), freq("[1, 1, 0]"));
-    assert!(a > 0.1, "{a}");
-    assert!((a - b).abs() <= 1e-12 * b, "{a} vs {b}");
+    let b = freq("[1, 1, 0]");
+    assert!(b > 0.1, "{b}");
+    // huge, tiny and subnormal components: 1/5e-324 overflows, so a normalisation that
+    // multiplies by the reciprocal of the largest component turned these into NaN
+    for axis in [
+        "[1e308, 1e308, 0]",
+        "[1e-320, 1e-320, 0]",
+        "[5e-324, 5e-324, 0]",
+    ] {
+        let a = freq(axis);
+        assert!((a - b).abs() <= 1e-12 * b, "{axis}: {a} vs {b}");
+    }
     // zero and non-finite axes are located errors
     for bad in ["[0, 0, 0]", "[0, inf, 0]", "[1e-320, 0, 0]"] {
         let text = base.replace("axis = [0, 1, 0]", &format!("axis = {bad}"));

@@ -360,3 +360,35 @@ fn merge_and_resume_refuse_time_and_parameters_claiming_ten_billion_values() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A file whose /parameters/values is gone (deleted, or hidden by a damaged object
+/// header) while /parameters/names is there: `plot` panicked labelling the lines
+/// (index out of bounds, exit 70; found by a byte-flipping probe in session 44); now
+/// exit 2 naming both datasets.
+#[test]
+fn plot_refuses_parameter_names_without_their_values() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("novalues");
+    let m = pendulum();
+    let out = run(&dir, &["run", &m, "--set", "t_end=0.05", "-o", "base.h5"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    h5py_edit(&dir, "base.h5", "novalues.h5", "del f['parameters/values']");
+    refused(
+        &dir,
+        &["plot", "novalues.h5", "--sensor", "angle", "-o", "p.svg"],
+        "novalues.h5",
+        &[
+            "/parameters/names holds",
+            "/parameters/values is missing or unreadable",
+        ],
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -211,3 +211,56 @@ fn merge_refuses_a_shard_whose_time_grid_was_altered_with_exit_2() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A shard whose parameter table was edited (names replaced or emptied, values set to
+/// NaN or moved off the campaign's definition) is refused with exit 2, naming the file
+/// and the parameter: `merge` copies the values as stored, so until session 44 it merged
+/// NaN parameters and foreign names with exit 0, and an emptied table failed as an
+/// output fault (exit 5).
+#[test]
+fn merge_refuses_a_shard_whose_parameter_table_was_edited_with_exit_2() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("params");
+    shards(&dir);
+    for (name, edit, needles) in [
+        (
+            "names",
+            "n = f['parameters/names'][...]; del f['parameters/names']; \
+             f['parameters/names'] = [b'a'] * len(n)",
+            &["/parameters/names differ"][..],
+        ),
+        (
+            "nan",
+            "v = f['parameters/values'][...]; v[:] = float('nan'); f['parameters/values'][...] = v",
+            &["/parameters/values of variant", "`theta0` is NaN"][..],
+        ),
+        (
+            "off",
+            "v = f['parameters/values'][...]; v[:, 0] += 1.0; f['parameters/values'][...] = v",
+            &["`theta0`", "the campaign's definition gives"][..],
+        ),
+        (
+            "empty",
+            "del f['parameters/names']; del f['parameters/values']\n        \
+             f.create_dataset('parameters/names', shape=(0,), dtype=h5py.string_dtype())\n        \
+             f.create_dataset('parameters/values', shape=(2, 0), dtype='f8')",
+            &["/parameters/names differ"][..],
+        ),
+    ] {
+        let bad = format!("{name}.h5");
+        let script = format!(
+            "import h5py, shutil\nshutil.copy('sh2.h5', '{bad}')\nwith h5py.File('{bad}', 'r+') as f:\n        {edit}\n"
+        );
+        h5py(&dir, &script);
+        let out = run(&dir, &["merge", "sh1.h5", &bad, "-o", "m.h5", "--json"]);
+        refused(&out, name, needles);
+        assert!(
+            !dir.join("m.h5").exists(),
+            "{name}: a merged file was written"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

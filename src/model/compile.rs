@@ -452,7 +452,9 @@ impl Compiler<'_> {
             // stay bit-identical to earlier releases
             return Ok(scale(x, 1.0 / n));
         }
-        let y = scale(x, 1.0 / big);
+        // divided, not multiplied by 1/big: 1/big overflows for a subnormal component
+        // (an axis [0, 5e-324, 0] became [NaN, inf, NaN])
+        let y = x.map(|c| c / big);
         Ok(scale(y, 1.0 / norm(y)))
     }
 
@@ -1314,8 +1316,18 @@ impl Compiler<'_> {
                 format!("must be [x axis, y axis], has {} entries", v.len()),
             ));
         }
-        let x = self.vec3(&v[0], &format!("{f}[0]"))?;
-        let y = self.vec3(&v[1], &format!("{f}[1]"))?;
+        // each scaled by its largest component (divided: its reciprocal overflows for a
+        // subnormal one), so that tiny or huge axes neither underflow nor overflow below
+        let unit_max = |a: Vec3| {
+            let big = a.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+            if big > 0.0 && big.is_finite() {
+                a.map(|c| c / big)
+            } else {
+                a
+            }
+        };
+        let x = unit_max(self.vec3(&v[0], &format!("{f}[0]"))?);
+        let y = unit_max(self.vec3(&v[1], &format!("{f}[1]"))?);
         let nx = norm(x);
         let yp = sub(y, scale(x, dot(x, y) / (nx * nx)));
         if nx == 0.0 || norm(yp) <= 1e-9 * norm(y) {

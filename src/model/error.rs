@@ -29,9 +29,45 @@ fn render(e: &ModelError) -> String {
     }
     s += ": ";
     if let Some(f) = &e.field {
-        s += &format!("field `{f}`: ");
+        s += &format!("field `{}`: ", elide_long_words(f));
     }
-    s + &e.message
+    s + &elide_long_words(&e.message)
+}
+
+/// Longest run of non-blank characters a message shows whole.
+const LONGEST_WORD: usize = 200;
+
+/// `text` with every run of non-blank characters longer than [`LONGEST_WORD`] cut to its
+/// head and its length: a name or key of megabytes (an unknown key, a mistyped reference)
+/// made a message of megabytes, twice as large where the name appears twice.
+pub fn elide_long_words(text: &str) -> String {
+    if text.len() <= LONGEST_WORD {
+        return text.to_string();
+    }
+    let mut out = String::with_capacity(text.len().min(4 * LONGEST_WORD));
+    let mut word = String::new();
+    let mut count = 0usize;
+    let flush = |out: &mut String, word: &mut String, count: &mut usize| {
+        out.push_str(word);
+        if *count > LONGEST_WORD {
+            out.push_str(&format!("… ({count} characters)"));
+        }
+        word.clear();
+        *count = 0;
+    };
+    for c in text.chars() {
+        if c.is_whitespace() {
+            flush(&mut out, &mut word, &mut count);
+            out.push(c);
+        } else {
+            count += 1;
+            if count <= LONGEST_WORD {
+                word.push(c);
+            }
+        }
+    }
+    flush(&mut out, &mut word, &mut count);
+    out
 }
 
 impl ModelError {
@@ -92,5 +128,26 @@ mod tests {
         assert_eq!(e.to_string(), "m.toml:2:1: field `bé`: bad");
         let e = ModelError::file("m.toml", None, "cannot read");
         assert_eq!(e.to_string(), "m.toml: cannot read");
+    }
+
+    /// A name of megabytes is cut in the message; words of ordinary length stay whole.
+    #[test]
+    fn a_huge_name_in_a_message_is_cut_to_its_head_and_length() {
+        let name = "a".repeat(5_000_000);
+        let e = ModelError::file(
+            "m.toml",
+            Some(format!("solver.{name}")),
+            format!("unknown key `{name}` (keys: dt, t_end)"),
+        );
+        let text = e.to_string();
+        assert!(text.len() < 1_000, "{} bytes", text.len());
+        assert!(text.contains("(5000007 characters)"), "{text}");
+        assert!(text.contains("(5000002 characters)"), "{text}");
+        assert!(text.ends_with("(keys: dt, t_end)"), "{text}");
+        let short = ModelError::file("m.toml", Some("solver.dtt".into()), "unknown key `dtt`");
+        assert_eq!(
+            short.to_string(),
+            "m.toml: field `solver.dtt`: unknown key `dtt`"
+        );
     }
 }

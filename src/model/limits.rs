@@ -114,7 +114,9 @@ impl Limits {
                     "{ENV}: {k}: must be a whole number from 1 to 1e18, is {v}"
                 ));
             }
-            let x = x as u64;
+            // a value raised past what this machine's memory can hold is held to that (the
+            // allocation would abort the program instead of failing with a message)
+            let x = (x as u64).min(memory_cap(k).map_or(u64::MAX, |c| c.max(default_of(k))));
             match k {
                 "model_bytes" => l.model_bytes = x,
                 "elements" => l.elements = x,
@@ -136,9 +138,76 @@ impl Limits {
     }
 }
 
+/// Bytes of memory one unit of each memory-bound key takes at least, for
+/// [`memory_cap`]: lower bounds, so that the cap stops only what cannot fit (values a
+/// thousand times too large, which abort in the allocator), not a large model that
+/// might run with swap. An element 4 kB (compiling and solving take about 22 kB, see
+/// [`Limits::default`]); a coordinate 500 bytes; an output value 8 bytes (its f64); a
+/// variant 4 kB (a compiled model is far larger); a byte of a dense matrix or of a model
+/// file, itself.
+const BYTES_PER_UNIT: [(&str, u64); 6] = [
+    ("elements", 4_000),
+    ("dofs", 500),
+    ("output_values", 8),
+    ("variants", 4_096),
+    ("dense_bytes", 1),
+    ("model_bytes", 1),
+];
+
+/// This machine's memory in bytes (`MemTotal` of /proc/meminfo), if it can be read.
+pub fn memory_bytes() -> Option<u64> {
+    static MEM: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    *MEM.get_or_init(|| {
+        let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+        let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+        let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        kb.checked_mul(1024)
+    })
+}
+
+/// The most of `key` this machine's memory can hold ([`BYTES_PER_UNIT`]), if the key is
+/// memory-bound and the memory is known. `LATDYN_LIMITS` cannot raise a limit past it
+/// (nor lower a default below it): a model that large would make the allocator abort.
+pub fn memory_cap(key: &str) -> Option<u64> {
+    let per = BYTES_PER_UNIT.iter().find(|(k, _)| *k == key)?.1;
+    Some(memory_bytes()? / per)
+}
+
+fn default_of(key: &str) -> u64 {
+    let d = Limits::default();
+    match key {
+        "model_bytes" => d.model_bytes,
+        "elements" => d.elements,
+        "dofs" => d.dofs,
+        "output_values" => d.output_values,
+        "variants" => d.variants,
+        "steps" => d.steps,
+        "dense_bytes" => d.dense_bytes,
+        _ => u64::MAX,
+    }
+}
+
 /// The message for a quantity over its limit: what, how much, the limit, how to raise it.
 /// `value` is an f64 so that sizes beyond any integer type (1e300 samples) print as they are.
+/// A limit that `LATDYN_LIMITS` raised to the machine's memory ([`memory_cap`]) says so.
 pub fn exceeded(what: &str, value: f64, key: &str, limit: u64) -> String {
+    if limit != default_of(key) && memory_cap(key) == Some(limit) {
+        let per = BYTES_PER_UNIT
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map_or(1, |p| p.1);
+        return format!(
+            "{what}: {} exceeds what this machine's memory ({:.1} GiB) can hold, about \
+             {limit}{} (LATDYN_LIMITS key `{key}` is held to that)",
+            count(value),
+            memory_bytes().unwrap_or(0) as f64 / f64::from(1u32 << 30),
+            if per > 1 {
+                format!(" at {per} bytes each")
+            } else {
+                String::new()
+            },
+        );
+    }
     format!(
         "{what}: {} exceeds the limit of {limit} (set by {ENV}, key `{key}`; if you \
          really need more, raise it, e.g. {ENV}={key}={})",
@@ -244,10 +313,39 @@ pub fn parse_threads(s: &str) -> Result<usize, String> {
 mod tests {
     use super::*;
 
+    /// A limit raised far past the machine is held to its memory, and the message says
+    /// so instead of inviting a larger value (before, the allocation aborted the program).
+    #[test]
+    fn limits_raised_past_the_machines_memory_are_held_to_it() {
+        let Some(mem) = memory_bytes() else {
+            eprintln!("skipped: /proc/meminfo not readable");
+            return;
+        };
+        let l = Limits::parse("elements=1e18,dense_bytes=1e18,output_values=1e18").unwrap();
+        assert_eq!(l.elements, (mem / 4_000).max(Limits::default().elements));
+        assert_eq!(l.dense_bytes, mem.max(Limits::default().dense_bytes));
+        assert_eq!(
+            l.output_values,
+            (mem / 8).max(Limits::default().output_values)
+        );
+        let m = exceeded("beam elements", 1e12, "elements", l.elements);
+        assert!(m.contains("this machine's memory"), "{m}");
+        // the defaults' messages are unchanged
+        let m = exceeded(
+            "beam elements",
+            1e12,
+            "elements",
+            Limits::default().elements,
+        );
+        assert!(m.contains("raise it"), "{m}");
+    }
+
     #[test]
     fn env_syntax_and_errors() {
         let l = Limits::parse("elements=2e6, variants=5").unwrap();
-        assert_eq!((l.elements, l.variants), (2_000_000, 5));
+        let held =
+            |key: &str, x: u64| x.min(memory_cap(key).map_or(u64::MAX, |c| c.max(default_of(key))));
+        assert_eq!((l.elements, l.variants), (held("elements", 2_000_000), 5));
         assert_eq!(l.dofs, Limits::default().dofs);
         let l = Limits::parse("dense_bytes=1e5").unwrap();
         assert_eq!(l.dense_bytes, 100_000);

@@ -15,7 +15,7 @@ mod types;
 pub use compile::{
     compile_str, compile_str_refined, load, load_refined, parse_file, parse_set, Parsed,
 };
-pub use error::ModelError;
+pub use error::{elide_long_words, ModelError};
 pub use limits::Limits;
 pub use repeat::RepeatSummary;
 pub use types::*;

@@ -2885,12 +2885,16 @@ fn spread_evenly(h: f64, remaining: f64, t_target: f64) -> f64 {
 /// interval and their size as [`spread_evenly`] takes them (one step of the interval where
 /// dt exceeds it); `None` where dt divides it or there is no output interval.
 pub fn spread_step(model: &Model) -> Option<(usize, f64)> {
-    let s = &model.solver;
-    if s.output_dt <= 0.0 {
+    spread_over(model.solver.dt, model.solver.output_dt)
+}
+
+/// [`spread_step`] of a step `dt` over an interval of length `interval`.
+pub fn spread_over(dt: f64, interval: f64) -> Option<(usize, f64)> {
+    if interval <= 0.0 {
         return None;
     }
-    let h = spread_evenly(s.dt.min(s.output_dt), s.output_dt, s.output_dt);
-    (h != s.dt).then(|| ((s.output_dt / h).round() as usize, h))
+    let h = spread_evenly(dt.min(interval), interval, interval);
+    (h != dt).then(|| ((interval / h).round() as usize, h))
 }
 
 /// A run's step under `--accuracy`: `h` within `dt_min` and `dt_max`, and at most the

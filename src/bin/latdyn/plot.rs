@@ -386,6 +386,13 @@ impl Campaign {
                 }
                 raw.chunks(np).map(<[f64]>::to_vec).collect()
             }
+        } else if !parameter_names.is_empty() {
+            // (a damaged header hides the dataset: the labels would index empty rows)
+            return Err(err(format!(
+                "/parameters/names holds {} names but /parameters/values is missing or \
+                 unreadable",
+                parameter_names.len()
+            )));
         } else {
             vec![Vec::new(); n_sensor_variants]
         };

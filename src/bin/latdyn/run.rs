@@ -97,18 +97,26 @@ pub(crate) fn spread_note(m: &latdyn::model::Model) -> Option<String> {
     if m.solver.accuracy.is_some() {
         return None;
     }
-    let (n, h) = latdyn::solver::dynamics::spread_step(m)?;
-    let (dt, out) = (m.solver.dt, m.solver.output_dt);
-    Some(if dt > out {
+    let (dt, out, t_end) = (m.solver.dt, m.solver.output_dt, m.solver.t_end);
+    // an output interval longer than the run ends at t_end: the steps spread over that
+    let (span, what) = if out > t_end && t_end > 0.0 {
+        (
+            t_end,
+            format!("the run's span t_end = {t_end:e} s (the output interval is {out:e} s)"),
+        )
+    } else {
+        (out, format!("the output interval {out:e} s"))
+    };
+    let (n, h) = latdyn::solver::dynamics::spread_over(dt, span)?;
+    Some(if dt > span {
         format!(
-            "note: {}: dt = {dt:e} s exceeds the output interval {out:e} s; each step is \
-             the interval",
+            "note: {}: dt = {dt:e} s exceeds {what}; each step is the interval",
             m.path
         )
     } else {
         format!(
-            "note: {}: dt = {dt:e} s does not divide the output interval {out:e} s; each \
-             interval is {n} equal steps of {h:.6e} s",
+            "note: {}: dt = {dt:e} s does not divide {what}; each interval is {n} equal \
+             steps of {h:.6e} s",
             m.path
         )
     })
