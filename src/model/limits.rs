@@ -166,8 +166,8 @@ pub fn memory_bytes() -> Option<u64> {
 }
 
 /// The most of `key` this machine's memory can hold ([`BYTES_PER_UNIT`]), if the key is
-/// memory-bound and the memory is known. `LATDYN_LIMITS` cannot raise a limit past it
-/// (nor lower a default below it): a model that large would make the allocator abort.
+/// memory-bound and the memory is known. `LATDYN_LIMITS` cannot raise a limit past it (a
+/// model that large would make the allocator abort); a default above it stays.
 pub fn memory_cap(key: &str) -> Option<u64> {
     let per = BYTES_PER_UNIT.iter().find(|(k, _)| *k == key)?.1;
     Some(memory_bytes()? / per)
@@ -328,8 +328,11 @@ mod tests {
             l.output_values,
             (mem / 8).max(Limits::default().output_values)
         );
-        let m = exceeded("beam elements", 1e12, "elements", l.elements);
-        assert!(m.contains("this machine's memory"), "{m}");
+        // (on a machine under 4 GB the cap is below the default, which then stays)
+        if l.elements != Limits::default().elements {
+            let m = exceeded("beam elements", 1e12, "elements", l.elements);
+            assert!(m.contains("this machine's memory"), "{m}");
+        }
         // the defaults' messages are unchanged
         let m = exceeded(
             "beam elements",
