@@ -67,10 +67,29 @@ pub(crate) fn choose_stage(
     if !want_gpu {
         return Ok((Stage::cpu(), None));
     }
+    // a software adapter (llvmpipe, lavapipe) compiles the kernels on first use, which
+    // took 140 s with an empty Mesa shader cache (1.3 s once cached): say what the wait is
+    eprintln!(
+        "element stage: opening the GPU and compiling its kernels ({})...",
+        precision.as_str()
+    );
+    let t0 = std::time::Instant::now();
     let ctx = GpuContext::open(precision, b.backend == "gpu")
         .map_err(|e| anyhow!("--backend {}: {e}", b.backend))?;
     let adapter = ctx.adapter.label();
-    eprintln!("element stage: gpu on {adapter}, {}", precision.as_str());
+    let took = t0.elapsed().as_secs_f64();
+    let slow = if took > 5.0 {
+        format!(
+            " (opening and compiling took {took:.0} s: a software adapter compiles the \
+             kernels on first use and its driver caches them for the next run)"
+        )
+    } else {
+        String::new()
+    };
+    eprintln!(
+        "element stage: gpu on {adapter}, {}{slow}",
+        precision.as_str()
+    );
     let eval = Arc::new(GpuEval::new(ctx));
     let shared = eval.clone();
     let stage = Stage {
