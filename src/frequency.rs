@@ -2,7 +2,8 @@
 //! the sensor's spectrum and, on a spinning hub, checked against the rotating-frame modes.
 //!
 //! Without a spinning hub the strongest line of the spectrum is reported (as before), with
-//! a warning when the record holds fewer than [`MIN_CYCLES`] of its periods.
+//! a warning when the record holds fewer than [`MIN_CYCLES`] of its periods, and one when
+//! even the lowest mode lies above the output's Nyquist frequency ([`aliased`]).
 //!
 //! With a hub at constant speed Ω ([`find_spin`]) the rotating-frame modes about the steady
 //! state are the prior ([`rotating_modes_with_shapes`]). The wanted mode is the lowest one
@@ -17,7 +18,8 @@
 //! `first_bending_eig_hz`. The value is NaN when no line in the window stands
 //! [`NOISE_FACTOR`] above the spectrum's median (the noise floor). Warnings, each naming
 //! the likely cause, start with `first_bending_hz: <kind>:` (kinds: `not excited`,
-//! `ambiguous spectrum`, `disagrees with the eigenvalue`, `no modal prior`, `short record`):
+//! `ambiguous spectrum`, `disagrees with the eigenvalue`, `no modal prior`, `short record`,
+//! `aliased`):
 //! a number that differs from the eigenvalue by more than [`AGREE`] never goes out without
 //! one.
 //!
@@ -111,6 +113,9 @@ pub fn first_bending(model: &Model, sensor: (usize, usize), x: &[f64], dt: f64) 
     };
     let Some(spin) = find_spin(model) else {
         largest(&mut out);
+        if out.hz.is_finite() {
+            out.warnings.extend(aliased(model, nyq, out.hz));
+        }
         return out;
     };
     let rm = match rotating_modes_with_shapes(model, spin, SHAPES) {
@@ -255,6 +260,36 @@ pub const SEEN: f64 = 0.05;
 /// ([`RotatingModes::first_elastic`]'s rule) and that the sensor sees ([`SEEN`]): the
 /// sensor's linearised response to the mode's real and imaginary parts about the steady
 /// state, per unit modal mass.
+/// Without a spinning hub there is no modal prior for the line, but a record sampled too
+/// coarsely for every mode is still recognisable: where the lowest mode about the start
+/// (`latdyn modes` at the initial state, [`crate::solver::modes::lowest_modes`]) lies above
+/// the Nyquist frequency `nyq` of the output interval, no mode can show in the spectrum,
+/// and its strongest line `hz` is an alias or a forced line (measured, session 44: the
+/// pendulum at 0.698 Hz sampled every 1 s read 0.302 Hz, the cantilever's 5.60 Hz
+/// sampled every 0.1 s 4.40 Hz, both without a warning). `None` where the lowest mode is
+/// below it, or no modes can be computed (a model too large for the dense analysis, an
+/// unstable start), which leaves the line as it was.
+fn aliased(model: &Model, nyq: f64, hz: f64) -> Option<String> {
+    const LOWEST: usize = 8;
+    let start = crate::joint::State::new(model);
+    let md = crate::solver::modes::lowest_modes(model, &start, LOWEST).ok()?;
+    let f1 = md
+        .frequencies_hz
+        .iter()
+        .zip(&md.zero_frequency)
+        .find(|(f, zero)| !**zero && **f > 0.0)
+        .map(|(f, _)| *f)?;
+    (f1 > nyq).then(|| {
+        format!(
+            "first_bending_hz: aliased: the lowest mode about the start ({f1:.5} Hz, `latdyn \
+             modes --about reference`) lies above the Nyquist frequency of the output \
+             interval ({nyq:.5} Hz): no mode can show in the spectrum, and its strongest line \
+             ({hz:.5} Hz) is an alias or a forced line; shorten output_dt below {:.3e} s",
+            0.5 / f1
+        )
+    })
+}
+
 fn seen_elastic(model: &Model, rm: &RotatingModes, sensor: (usize, usize)) -> Option<usize> {
     use crate::solver::rotating::RIGID_DEFORMATION;
     let elastic: Vec<usize> = (0..rm.deformation.len())

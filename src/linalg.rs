@@ -515,6 +515,86 @@ impl SparseLuSymbolic {
         Ok((sign, negative))
     }
 
+    /// [`det_sign`](Self::det_sign) where it means something: `None` when the smallest
+    /// pivot of U is below `rel_tol` of the largest, where the sign is round-off (a free
+    /// hinge at rest has a zero stiffness, and its pivot's sign is noise: the flapping
+    /// blade's tangent at rest read det < 0).
+    pub fn det_sign_clear(&self, values: &[f64], rel_tol: f64) -> Result<Option<i8>, LinalgError> {
+        let Some((lu, rp)) = self.simplicial_lu(values, "determinant sign")? else {
+            return Ok(Some(1));
+        };
+        let u = lu.u_factor_unsorted();
+        let (cp, ri, uv) = (u.col_ptr(), u.row_idx(), u.val());
+        let mut sign = perm_sign(&rp) * perm_sign(self.symbolic.col_perm().arrays().0);
+        let (mut smallest, mut largest) = (f64::INFINITY, 0.0f64);
+        for j in 0..self.n {
+            let d = (cp[j]..cp[j + 1])
+                .find(|&k| ri[k] == j)
+                .map_or(0.0, |k| uv[k]);
+            smallest = smallest.min(d.abs());
+            largest = largest.max(d.abs());
+            if d < 0.0 {
+                sign = -sign;
+            }
+        }
+        Ok((smallest > rel_tol * largest).then_some(sign))
+    }
+
+    /// For a matrix with this pattern and `values` that is symmetric to `rel_tol` of its
+    /// largest entry, whether it is positive definite (its sparse Cholesky factorization
+    /// exists once its diagonal is raised by `rel_tol` of the largest diagonal entry, so
+    /// that a zero eigenvalue passes): for a conservative structure's tangent stiffness,
+    /// whether an equilibrium is stable. Unlike the sign of det A it also sees an even number of negative
+    /// directions (a column past its buckling load in two planes at once). `None` for a
+    /// matrix that is not symmetric (dead moments turned by large rotations are not
+    /// conservative, and the definiteness of a symmetric part says nothing there).
+    pub fn symmetric_positive_definite(
+        &self,
+        values: &[f64],
+        rel_tol: f64,
+    ) -> Result<Option<bool>, LinalgError> {
+        if values.len() != self.nnz() || !values.iter().all(|v| v.is_finite()) {
+            return Err(LinalgError::NonFinite);
+        }
+        let (cp, ri) = (self.structure.col_ptr(), self.structure.row_idx());
+        let mut entries = std::collections::HashMap::with_capacity(values.len());
+        for j in 0..self.n {
+            for k in cp[j]..cp[j + 1] {
+                entries.insert((ri[k], j), values[k]);
+            }
+        }
+        let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let skew = entries
+            .iter()
+            .map(|(&(i, j), v)| (v - entries.get(&(j, i)).copied().unwrap_or(0.0)).abs())
+            .fold(0.0f64, f64::max);
+        if skew > rel_tol * largest {
+            return Ok(None);
+        }
+        let mut triplets = Vec::with_capacity(2 * values.len());
+        for j in 0..self.n {
+            for k in cp[j]..cp[j + 1] {
+                let i = ri[k];
+                // the lower triangle of A + Aᵀ, halved
+                let (r, c) = if i >= j { (i, j) } else { (j, i) };
+                let v = if i == j { values[k] } else { 0.5 * values[k] };
+                triplets.push(faer::sparse::Triplet::new(r, c, v));
+            }
+        }
+        // a zero-stiffness direction (a free hinge at rest) is neutral, not unstable: the
+        // diagonal is raised by `rel_tol` of its largest entry so that only a negative
+        // stiffness larger than that fails the factorization
+        let diag = (0..self.n)
+            .flat_map(|j| (cp[j]..cp[j + 1]).filter(move |&k| ri[k] == j))
+            .fold(0.0f64, |m, k| m.max(values[k].abs()));
+        triplets.extend((0..self.n).map(|i| faer::sparse::Triplet::new(i, i, rel_tol * diag)));
+        let sym = faer::sparse::SparseColMat::<usize, f64>::try_new_from_triplets(
+            self.n, self.n, &triplets,
+        )
+        .map_err(|e| LinalgError::Other(format!("symmetric part: {e:?}")))?;
+        Ok(Some(sym.sp_cholesky(Side::Lower).is_ok()))
+    }
+
     /// Stored nonzeros of L and U (L's unit diagonal counted once, in L) of
     /// [`simplicial_lu`](Self::simplicial_lu) (faer's supernodal factor also stores the
     /// explicit zeros of its dense supernode blocks, so it holds at least this many). For

@@ -359,3 +359,70 @@ fn a_frequency_of_a_constant_component_is_warned_and_the_component_taken_is_note
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("names no component"));
 }
+
+/// Without a spinning hub the strongest line has no modal prior, but a record sampled
+/// below twice the lowest mode's frequency is recognised: the pendulum (0.698 Hz about
+/// its start) sampled every 1 s read 0.302 Hz, its alias, with no warning (session 44's
+/// probe). It is warned now, naming the mode and the Nyquist frequency; sampled every
+/// 0.25 s the line is the pendulum's own (within 1 % of 1/T by the elliptic integral) and
+/// nothing is said.
+#[test]
+fn a_line_sampled_below_twice_the_lowest_modes_frequency_is_warned_as_aliased() {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pendulum.toml"),
+    )
+    .unwrap()
+    .replacen("[solver]\n", "[solver]\noutput_dt = \"odt\"\n", 1)
+    .replacen("[parameters]\n", "[parameters]\nodt = 0.01\n", 1);
+    assert!(text.contains("output_dt = \"odt\"") && text.contains("odt = 0.01"));
+    let path = std::env::temp_dir().join(format!("latdyn_alias_{}.toml", std::process::id()));
+    std::fs::write(&path, text).unwrap();
+    let run = |odt: &str| {
+        let out = latdyn(&[
+            "sweep",
+            path.to_str().unwrap(),
+            "--vary",
+            "theta0=0.1:0.1:1",
+            "--set",
+            "t_end=60",
+            "--set",
+            odt,
+            "--frequency",
+            "angle.ry",
+            "--json",
+        ]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["variants"][0].clone()
+    };
+    let coarse = run("odt=1");
+    let w: Vec<&str> = coarse["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect();
+    assert!(
+        w.iter().any(|w| w.starts_with("first_bending_hz: aliased")
+            && w.contains("Nyquist frequency of the output interval (0.50000 Hz)")),
+        "{coarse}"
+    );
+    let fine = run("odt=0.25");
+    assert_eq!(fine["warnings"].as_array().unwrap().len(), 0, "{fine}");
+    // 1/T for θ0 = 0.1 by the AGM: T = 2π/(ω0 · AGM(1, cos(θ0/2)))
+    let (g, m, d, ic) = (9.81f64, 2.0f64, 0.5f64, 0.01f64);
+    let w0 = (m * g * d / (ic + m * d * d)).sqrt();
+    let (mut a, mut b) = (1.0f64, (0.05f64).cos());
+    for _ in 0..20 {
+        (a, b) = (0.5 * (a + b), (a * b).sqrt());
+    }
+    let f = w0 * a / (2.0 * PI);
+    let hz = fine["derived"]["first_bending_hz"].as_f64().unwrap();
+    assert!((hz - f).abs() < 0.01 * f, "{hz} Hz against {f} Hz");
+    let _ = std::fs::remove_file(&path);
+}

@@ -312,3 +312,54 @@ fn a_millimetre_cantilever_of_fine_elements_solves_as_its_metre_twin() {
         assert!(rel(m / (l * l * l), m1) < 1e-6, "L = {l:e}: M = {m:e}");
     }
 }
+
+/// Newton finds the equilibrium nearest its start, stable or not. A column (EI = 100 in
+/// both planes, L = 1: P_cr = π²EI/4L² = 246.7 N) under 240 N of compression is stable
+/// and must not warn; under 260 and 500 N it stays straight (an equilibrium, but with a
+/// negative-stiffness direction in each bending plane, so det K > 0 and only the
+/// definiteness test sees it) and must say it is unstable. Session 44's probe found it
+/// silent. In tension nothing is said.
+#[test]
+fn a_column_past_its_buckling_load_is_an_equilibrium_said_to_be_unstable() {
+    let p_cr = std::f64::consts::PI.powi(2) * 100.0 / 4.0;
+    for (p, unstable) in [
+        (240.0, false),
+        (260.0, true),
+        (500.0, true),
+        (-500.0, false),
+    ] {
+        let m = straight_beam("clamped", 8, BEAM_PROPS, [-p, 0.0, 0.0], [0.0; 3], "");
+        let sol = solve_statics(&m).unwrap();
+        let warned = sol
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("the equilibrium found is unstable"));
+        assert_eq!(
+            warned,
+            unstable,
+            "P = {p} N ({:.2} P_cr): {:?}",
+            p / p_cr,
+            sol.report.warnings
+        );
+    }
+}
+
+/// The pendulum started past horizontal (θ0 > π/2) converges to the inverted state,
+/// θ = π; started below it, to the hanging one. Only the inverted one is warned.
+#[test]
+fn an_inverted_pendulum_found_by_statics_is_said_to_be_unstable() {
+    for (theta0, unstable) in [(1.0, false), (2.0, true)] {
+        let m = shipped("pendulum.toml", &[("theta0", theta0)]);
+        let sol = solve_statics(&m).unwrap();
+        let ry = sensor(&m, &sol.sensors, "angle")[4];
+        let expect = if unstable { std::f64::consts::PI } else { 0.0 };
+        assert!((ry - expect).abs() < 1e-9, "θ0 = {theta0}: ry = {ry}");
+        let warned = sol
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("the equilibrium found is unstable"));
+        assert_eq!(warned, unstable, "θ0 = {theta0}: {:?}", sol.report.warnings);
+    }
+}

@@ -248,7 +248,35 @@ pub fn solve_until(
     rep.warnings
         .extend(crate::assembly::deformation_angle_warning(model, s));
     rep.warnings.extend(passed_locks(model, s));
+    rep.warnings.extend(unstable(model, &asm, &mut sys, s));
     Ok(rep)
+}
+
+/// Newton finds the equilibrium nearest its start, stable or not: the pendulum started
+/// past horizontal converged to the inverted state, a column loaded past its buckling
+/// load stayed straight, both without a word (found by a probe in session 44). A
+/// negative det K at the solution (with no pivot near zero, whose sign would be
+/// round-off) means an odd number of negative (real) eigenvalues of the tangent; a symmetric tangent that is not positive definite (no Cholesky factor)
+/// also sees an even number (a column of equal bending stiffnesses buckles in both planes
+/// at once): either way the equilibrium is unstable. Cost: one assembly, one sparse LU and
+/// one sparse Cholesky.
+fn unstable(model: &Model, asm: &Assembler, sys: &mut NewtonSystem, s: &State) -> Option<String> {
+    sys.evaluate(model, asm, s, Coeffs::statics(1.0), false)
+        .ok()?;
+    let sign = sys.symbolic().det_sign_clear(&sys.values, 1e-9).ok()?;
+    // (symmetric to 1e-9 of the largest entry: round-off of the assembly, far below the
+    // asymmetry of a dead moment's tangent)
+    let definite = sys
+        .symbolic()
+        .symmetric_positive_definite(&sys.values, 1e-9)
+        .ok()?;
+    (sign == Some(-1) || definite == Some(false)).then(|| {
+        "the equilibrium found is unstable: the tangent stiffness there is not positive \
+         definite (it has negative-stiffness directions), so the structure would leave it \
+         (an inverted pendulum, a column past its buckling load); `latdyn modes` names the \
+         unstable modes, and `statics --path` follows the loads onto the stable branch"
+            .to_string()
+    })
 }
 
 /// Hinges whose angle went from the reference to the equilibrium across their
