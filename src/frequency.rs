@@ -256,10 +256,6 @@ pub fn first_bending(model: &Model, sensor: (usize, usize), x: &[f64], dt: f64) 
 /// elastic flap mode), while the modes it sees are within a factor of a few of each other.
 pub const SEEN: f64 = 0.05;
 
-/// The lowest mode (among those with shapes) that bends a beam
-/// ([`RotatingModes::first_elastic`]'s rule) and that the sensor sees ([`SEEN`]): the
-/// sensor's linearised response to the mode's real and imaginary parts about the steady
-/// state, per unit modal mass.
 /// Without a spinning hub there is no modal prior for the line, but a record sampled too
 /// coarsely for every mode is still recognisable: where the lowest mode about the start
 /// (`latdyn modes` at the initial state, [`crate::solver::modes::lowest_modes`]) lies above
@@ -297,6 +293,10 @@ fn aliased(model: &Model, nyq: f64, hz: f64) -> Option<String> {
     })
 }
 
+/// The lowest mode (among those with shapes) that bends a beam
+/// ([`RotatingModes::first_elastic`]'s rule) and that the sensor sees ([`SEEN`]): the
+/// sensor's linearised response to the mode's real and imaginary parts about the steady
+/// state, per unit modal mass.
 fn seen_elastic(model: &Model, rm: &RotatingModes, sensor: (usize, usize)) -> Option<usize> {
     use crate::solver::rotating::RIGID_DEFORMATION;
     let elastic: Vec<usize> = (0..rm.deformation.len())

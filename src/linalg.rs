@@ -348,6 +348,15 @@ impl LuVariant {
     }
 }
 
+/// Sign of det(U) with the permutations', how many diagonal entries of U are negative,
+/// and the smallest and largest |U_jj| ([`SparseLuSymbolic::pivots`]).
+struct Pivots {
+    sign: i8,
+    negative: usize,
+    smallest: f64,
+    largest: f64,
+}
+
 /// Symbolic sparse LU analysis of one [`SparsePattern`]: fill-reducing column ordering
 /// (COLAMD) and the factor structure. Immutable; share it through `Arc` between any number
 /// of [`SparseLu`] numeric factorisations (it is `Send + Sync`).
@@ -493,26 +502,39 @@ impl SparseLuSymbolic {
     /// once per converged point (the bifurcation indicator), not per Newton iteration. A
     /// zero pivot gives sign 0.
     pub fn det_sign(&self, values: &[f64]) -> Result<(i8, usize), LinalgError> {
+        Ok(self
+            .pivots(values)?
+            .map_or((1, 0), |p| (p.sign, p.negative)))
+    }
+
+    /// The walk over U's diagonal behind [`det_sign`](Self::det_sign) and
+    /// [`det_sign_clear`](Self::det_sign_clear); `None` for an empty matrix.
+    fn pivots(&self, values: &[f64]) -> Result<Option<Pivots>, LinalgError> {
         let Some((lu, rp)) = self.simplicial_lu(values, "determinant sign")? else {
-            return Ok((1, 0));
+            return Ok(None);
         };
         let u = lu.u_factor_unsorted();
         let (cp, ri, uv) = (u.col_ptr(), u.row_idx(), u.val());
-        let mut sign = perm_sign(&rp) * perm_sign(self.symbolic.col_perm().arrays().0);
-        let mut negative = 0;
+        let mut p = Pivots {
+            sign: perm_sign(&rp) * perm_sign(self.symbolic.col_perm().arrays().0),
+            negative: 0,
+            smallest: f64::INFINITY,
+            largest: 0.0,
+        };
         for j in 0..self.n {
             let d = (cp[j]..cp[j + 1])
                 .find(|&k| ri[k] == j)
                 .map_or(0.0, |k| uv[k]);
+            p.smallest = p.smallest.min(d.abs());
+            p.largest = p.largest.max(d.abs());
             if d == 0.0 {
-                return Ok((0, negative));
-            }
-            if d < 0.0 {
-                negative += 1;
-                sign = -sign;
+                p.sign = 0;
+            } else if d < 0.0 {
+                p.negative += 1;
+                p.sign = -p.sign;
             }
         }
-        Ok((sign, negative))
+        Ok(Some(p))
     }
 
     /// [`det_sign`](Self::det_sign) where it means something: `None` when the smallest
@@ -520,34 +542,21 @@ impl SparseLuSymbolic {
     /// hinge at rest has a zero stiffness, and its pivot's sign is noise: the flapping
     /// blade's tangent at rest read det < 0).
     pub fn det_sign_clear(&self, values: &[f64], rel_tol: f64) -> Result<Option<i8>, LinalgError> {
-        let Some((lu, rp)) = self.simplicial_lu(values, "determinant sign")? else {
-            return Ok(Some(1));
-        };
-        let u = lu.u_factor_unsorted();
-        let (cp, ri, uv) = (u.col_ptr(), u.row_idx(), u.val());
-        let mut sign = perm_sign(&rp) * perm_sign(self.symbolic.col_perm().arrays().0);
-        let (mut smallest, mut largest) = (f64::INFINITY, 0.0f64);
-        for j in 0..self.n {
-            let d = (cp[j]..cp[j + 1])
-                .find(|&k| ri[k] == j)
-                .map_or(0.0, |k| uv[k]);
-            smallest = smallest.min(d.abs());
-            largest = largest.max(d.abs());
-            if d < 0.0 {
-                sign = -sign;
-            }
-        }
-        Ok((smallest > rel_tol * largest).then_some(sign))
+        Ok(match self.pivots(values)? {
+            None => Some(1),
+            Some(p) => (p.smallest > rel_tol * p.largest).then_some(p.sign),
+        })
     }
 
     /// For a matrix with this pattern and `values` that is symmetric to `rel_tol` of its
     /// largest entry, whether it is positive definite (its sparse Cholesky factorization
     /// exists once its diagonal is raised by `rel_tol` of the largest diagonal entry, so
     /// that a zero eigenvalue passes): for a conservative structure's tangent stiffness,
-    /// whether an equilibrium is stable. Unlike the sign of det A it also sees an even number of negative
-    /// directions (a column past its buckling load in two planes at once). `None` for a
-    /// matrix that is not symmetric (dead moments turned by large rotations are not
-    /// conservative, and the definiteness of a symmetric part says nothing there).
+    /// whether an equilibrium is stable. Unlike the sign of det A it also sees an even
+    /// number of negative directions (a column past its buckling load in two planes at
+    /// once). `None` for a matrix that is not symmetric (dead moments turned by large
+    /// rotations are not conservative, and the definiteness of a symmetric part says
+    /// nothing there).
     pub fn symmetric_positive_definite(
         &self,
         values: &[f64],

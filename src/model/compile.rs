@@ -452,9 +452,7 @@ impl Compiler<'_> {
             // stay bit-identical to earlier releases
             return Ok(scale(x, 1.0 / n));
         }
-        // divided, not multiplied by 1/big: 1/big overflows for a subnormal component
-        // (an axis [0, 5e-324, 0] became [NaN, inf, NaN])
-        let y = x.map(|c| c / big);
+        let y = scaled_by_largest(x);
         Ok(scale(y, 1.0 / norm(y)))
     }
 
@@ -1316,18 +1314,9 @@ impl Compiler<'_> {
                 format!("must be [x axis, y axis], has {} entries", v.len()),
             ));
         }
-        // each scaled by its largest component (divided: its reciprocal overflows for a
-        // subnormal one), so that tiny or huge axes neither underflow nor overflow below
-        let unit_max = |a: Vec3| {
-            let big = a.iter().fold(0.0f64, |m, c| m.max(c.abs()));
-            if big > 0.0 && big.is_finite() {
-                a.map(|c| c / big)
-            } else {
-                a
-            }
-        };
-        let x = unit_max(self.vec3(&v[0], &format!("{f}[0]"))?);
-        let y = unit_max(self.vec3(&v[1], &format!("{f}[1]"))?);
+        // tiny or huge axes must neither underflow nor overflow below
+        let x = scaled_by_largest(self.vec3(&v[0], &format!("{f}[0]"))?);
+        let y = scaled_by_largest(self.vec3(&v[1], &format!("{f}[1]"))?);
         let nx = norm(x);
         let yp = sub(y, scale(x, dot(x, y) / (nx * nx)));
         if nx == 0.0 || norm(yp) <= 1e-9 * norm(y) {
@@ -2308,6 +2297,18 @@ pub const MAX_TOL: f64 = 1e-2;
 /// How far from perpendicular a body's given x and y axes may be [rad]: a table's
 /// directions rounded to four digits are within about 1e-4.
 const AXES_SLACK: f64 = 1e-3;
+
+/// `x` divided by its largest |component| (unchanged if that is 0 or not finite):
+/// divided, not multiplied by the reciprocal, which overflows for a subnormal component
+/// (an axis [0, 5e-324, 0] became [NaN, inf, NaN]).
+fn scaled_by_largest(x: Vec3) -> Vec3 {
+    let big = x.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    if big > 0.0 && big.is_finite() {
+        x.map(|c| c / big)
+    } else {
+        x
+    }
+}
 
 /// The global axis making the largest angle with `x` (ties: x before y before z).
 fn least_parallel_axis(x: Vec3) -> Vec3 {

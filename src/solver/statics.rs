@@ -256,10 +256,11 @@ pub fn solve_until(
 /// past horizontal converged to the inverted state, a column loaded past its buckling
 /// load stayed straight, both without a word (found by a probe in session 44). A
 /// negative det K at the solution (with no pivot near zero, whose sign would be
-/// round-off) means an odd number of negative (real) eigenvalues of the tangent; a symmetric tangent that is not positive definite (no Cholesky factor)
-/// also sees an even number (a column of equal bending stiffnesses buckles in both planes
-/// at once): either way the equilibrium is unstable. Cost: one assembly, one sparse LU and
-/// one sparse Cholesky.
+/// round-off) means an odd number of negative (real) eigenvalues of the tangent; a
+/// symmetric tangent that is not positive definite (no Cholesky factor) also sees an
+/// even number (a column of equal bending stiffnesses buckles in both planes at once):
+/// either way the equilibrium is unstable. Cost: one assembly, one sparse LU and one
+/// sparse Cholesky.
 fn unstable(model: &Model, asm: &Assembler, sys: &mut NewtonSystem, s: &State) -> Option<String> {
     sys.evaluate(model, asm, s, Coeffs::statics(1.0), false)
         .ok()?;
