@@ -31,6 +31,18 @@ fn pendulum() -> String {
         .to_string()
 }
 
+/// `base.h5` in `dir`: the pendulum over 0.05 s, the file the hostile copies start from.
+fn base_file(dir: &Path) {
+    let m = pendulum();
+    let out = run(dir, &["run", &m, "--set", "t_end=0.05", "-o", "base.h5"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 #[test]
 fn plot_refuses_a_sensor_claiming_a_billion_components_before_allocating() {
     if !common::h5py_available() {
@@ -38,14 +50,7 @@ fn plot_refuses_a_sensor_claiming_a_billion_components_before_allocating() {
         return;
     }
     let dir = scratch("bigcomp");
-    let m = pendulum();
-    let out = run(&dir, &["run", &m, "--set", "t_end=0.05", "-o", "base.h5"]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    base_file(&dir);
     let script = "import h5py, shutil\nshutil.copy('base.h5', 'big.h5')\nwith h5py.File('big.h5', 'r+') as f:\n    d = f['sensors/angle']; at = dict(d.attrs); n = f['time'].shape[0]\n    del f['sensors/angle']\n    ds = f.create_dataset('sensors/angle', shape=(1, n, 1_000_000_000), dtype='f8', chunks=(1, 1, 1 << 16))\n    for k, v in at.items(): ds.attrs[k] = v\n";
     assert!(Command::new("python3")
         .args(["-c", script])
@@ -218,14 +223,7 @@ fn plot_refuses_time_and_parameters_claiming_ten_billion_values_before_allocatin
         return;
     }
     let dir = scratch("bigtime");
-    let m = pendulum();
-    let out = run(&dir, &["run", &m, "--set", "t_end=0.05", "-o", "base.h5"]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    base_file(&dir);
     for (file, edit) in HUGE_TIME {
         h5py_edit(&dir, "base.h5", file, edit);
         refused(
@@ -372,14 +370,7 @@ fn plot_refuses_parameter_names_without_their_values() {
         return;
     }
     let dir = scratch("novalues");
-    let m = pendulum();
-    let out = run(&dir, &["run", &m, "--set", "t_end=0.05", "-o", "base.h5"]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    base_file(&dir);
     h5py_edit(&dir, "base.h5", "novalues.h5", "del f['parameters/values']");
     refused(
         &dir,
