@@ -492,14 +492,13 @@ fn past_the_axial_divergence_modes_warn_and_a_steady_start_fails_with_the_reason
     let m = "models/rotating_cantilever.toml";
     for (ea, diverged) in [("EA=1e3", true), ("EA=1e5", false)] {
         let v = latdyn_json(&["modes", m, "--set", "omega=50", "--set", ea, "--json"]);
-        let w = v["warnings"].as_array().unwrap();
-        assert_eq!(!w.is_empty(), diverged, "{ea}: {v}");
-        if diverged {
-            assert!(w[0]
-                .as_str()
-                .unwrap()
-                .contains("steady rotating state was not found"));
-        }
+        // the shipped 10 elements also leave the first mode 2.3 % off at EA = 1e5
+        // (against 160 elements), which the mesh check rightly warns: not the subject here
+        let steady = warnings(&v)
+            .into_iter()
+            .filter(|w| w.contains("steady rotating state was not found"))
+            .count();
+        assert_eq!(steady, usize::from(diverged), "{ea}: {v}");
         let run = latdyn(&[
             "run",
             m,
@@ -583,7 +582,14 @@ fn modes_about_a_static_state_carry_its_large_deformation_warning() {
     // and stay silent.
     let v = modes_json(&["models/bend45.toml", "--set", "elements=2"]);
     let w = v["warnings"].as_array().unwrap();
-    assert_eq!(w.len(), 1, "{v}");
+    // the second is the modes' own mesh check (their frequencies on 2 elements)
+    assert_eq!(w.len(), 2, "{v}");
+    assert!(
+        w[1].as_str()
+            .unwrap()
+            .starts_with("mesh too coarse for mode"),
+        "{v}"
+    );
     let w = w[0].as_str().unwrap();
     assert!(
         w.starts_with("the static equilibrium the modes are about: large deformation per element")
@@ -695,9 +701,15 @@ fn a_large_mode_count_keeps_the_lowest_modes_exact() {
                 base[k]
             );
         }
-        // no warning on the modes the shorter list had right
+        // no warning on the modes the shorter list had right (the mesh check names
+        // the modes beyond the tenth that 32 elements leave over 1 % off)
         for w in v["warnings"].as_array().unwrap() {
             let w = w.as_str().unwrap();
+            if let Some(list) = w.strip_prefix("mesh too coarse for modes ") {
+                let first: usize = list.split(' ').next().unwrap().parse().unwrap();
+                assert!(first > 10, "--count {count}: {w}");
+                continue;
+            }
             let k: usize = w["mode ".len()..]
                 .split(' ')
                 .next()
@@ -887,4 +899,148 @@ fn a_beam_in_extreme_units_has_its_unit_twins_frequencies_or_a_refusal_that_says
     refused(&["L=1e-100"], "leave the range of double precision");
     // EI 1e194 times EA L²: the axial modes are below the bending round-off
     refused(&["EI=1e200"], "cannot be resolved in double precision");
+}
+
+/// Estimated against true mesh error of every frequency of `model` on each of `meshes`
+/// elements (true: against `reference` elements), as (mesh, mode, estimate, truth).
+fn mesh_estimates(
+    model: &str,
+    meshes: &[usize],
+    reference: usize,
+    extra: &[&str],
+) -> Vec<(usize, usize, f64, f64)> {
+    let run = |n: usize, check: &str| {
+        let set = format!("elements={n}");
+        let mut a = vec![model, "--set", set.as_str(), "--mesh-check", check];
+        a.extend_from_slice(extra);
+        modes_json(&a)
+    };
+    let truth = freqs(&run(reference, "never"));
+    let mut out = Vec::new();
+    for &n in meshes {
+        let v = run(n, "auto");
+        let f = freqs(&v);
+        let e = v["mesh_error_estimates"].as_array().expect("measured");
+        assert_eq!(
+            v["mesh_elements"][1].as_u64(),
+            Some(2 * v["mesh_elements"][0].as_u64().unwrap())
+        );
+        for (k, x) in e.iter().enumerate() {
+            if let Some(x) = x.as_f64() {
+                out.push((n, k + 1, x, (f[k] - truth[k]).abs() / truth[k].abs()));
+            }
+        }
+        // exactly the modes estimated above 1 % are warned
+        let over: Vec<usize> = e
+            .iter()
+            .enumerate()
+            .filter(|(_, x)| x.as_f64().is_some_and(|x| x > 1e-2))
+            .map(|(k, _)| k + 1)
+            .collect();
+        let w: Vec<String> = warnings(&v)
+            .into_iter()
+            .filter(|w| w.starts_with("mesh too coarse"))
+            .collect();
+        assert_eq!(w.len(), usize::from(!over.is_empty()), "{n} elements: {v}");
+        for k in over.iter().take(latdyn::solver::modes::MESH_WARNING_NAMED) {
+            assert!(
+                w[0].contains(&format!(" {k} (")),
+                "mode {k} not named: {}",
+                w[0]
+            );
+        }
+    }
+    out
+}
+
+/// `modes` measures each frequency's mesh error by solving again with twice the
+/// elements (Richardson at order 4 for a bending mode, 2 for others). Against the same
+/// model on 16 to 64 times the elements the estimate reads 0.90 to 1.26 times the true
+/// error on the cantilever (2, 4, 8 elements, where on 2 the 4th bending pair is +80 %
+/// and passes the torsion mode), the rotating cantilever at Ω = 5 rad/s (4, 10) and the
+/// blade (5): so every mode whose true error is above 1.35 % is warned. Tolerance
+/// [0.85, 1.35]: the measured spread with a margin (pre-asymptotic meshes, mixed
+/// modes, where order 2 overstates a bending-dominated error by up to 1.25×); modes whose
+/// true error is below 1e-7 are left out (the eigen-solver's own round-off, 1e-9 on the
+/// blade's rigid flap, is then the comparison's). Until session 45 no mesh error was
+/// measured: the 2-element cantilever's 4th bending frequency was reported 80 % high
+/// without a word.
+#[test]
+fn the_mesh_check_of_the_modes_reads_each_frequencys_true_mesh_error() {
+    let mut all = mesh_estimates("models/cantilever.toml", &[2, 4, 8], 128, &[]);
+    all.extend(mesh_estimates(
+        "models/rotating_cantilever.toml",
+        &[4, 10],
+        80,
+        &[],
+    ));
+    all.extend(mesh_estimates("models/flapping_blade.toml", &[5], 80, &[]));
+    let mut checked = 0;
+    for (n, k, est, truth) in all {
+        if truth < 1e-7 {
+            continue;
+        }
+        checked += 1;
+        let r = est / truth;
+        assert!(
+            (0.85..=1.35).contains(&r),
+            "{n} elements, mode {k}: estimate {est:.3e}, true {truth:.3e} ({r:.2}×)"
+        );
+    }
+    assert!(checked >= 50, "{checked}");
+}
+
+/// The check is skipped with `--mesh-check never` (fields null, nothing warned); under
+/// `auto` a model whose refinement is above 1 500 free coordinates is not solved again
+/// and the warning says so; `always` measures it anyway. The shipped cantilever (8
+/// elements, all ten modes under 0.6 %) warns nothing.
+#[test]
+fn the_modes_mesh_check_is_skipped_only_when_asked_or_said() {
+    let v = modes_json(&[
+        "models/cantilever.toml",
+        "--set",
+        "elements=2",
+        "--mesh-check",
+        "never",
+    ]);
+    assert!(
+        v["mesh_error_estimates"].is_null() && v["mesh_elements"].is_null(),
+        "{v}"
+    );
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    // 130 elements: 780 free coordinates, 1 560 refined
+    let v = modes_json(&[
+        "models/cantilever.toml",
+        "--set",
+        "elements=130",
+        "--count",
+        "2",
+    ]);
+    assert!(v["mesh_error_estimates"].is_null(), "{v}");
+    let w = warnings(&v);
+    assert!(
+        w.len() == 1
+            && w[0].starts_with("mesh error of the frequencies not measured")
+            && w[0].contains("1560 free coordinates")
+            && w[0].contains("--mesh-check always"),
+        "{w:?}"
+    );
+    let v = modes_json(&[
+        "models/cantilever.toml",
+        "--set",
+        "elements=130",
+        "--count",
+        "2",
+        "--mesh-check",
+        "always",
+    ]);
+    // the mesh's own error is about 1e-11 here; what the two solves read is their
+    // round-off (`error_estimates` 6.5e-7), measured 9.7e-8
+    let e = v["mesh_error_estimates"][0].as_f64().unwrap();
+    let roundoff = v["error_estimates"][0].as_f64().unwrap();
+    assert!(e < 2.0 * roundoff, "{v}");
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    let v = modes_json(&["models/cantilever.toml"]);
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    assert_eq!(v["mesh_elements"], serde_json::json!([8, 16]), "{v}");
 }

@@ -138,3 +138,42 @@ fn modes_vary_errors_are_clear_and_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
 }
+
+/// `modes --vary` measures the mesh error at every value: `mesh_error_estimates` holds
+/// one list per value beside `sorted_frequencies_hz`, and one warning names the values
+/// where a frequency is above 1 % (the shipped blade's 10th mode, 70 Hz, is 1.4 % off on
+/// 10 elements at Ω = 1 rad/s, against 80 elements; its lowest five modes are within
+/// 1e-3 at every speed).
+#[test]
+fn modes_vary_measures_the_mesh_error_at_every_value() {
+    let o = latdyn(&[
+        "modes",
+        "models/flapping_blade.toml",
+        "--vary",
+        "omega=1:40:3",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
+    let e = v["mesh_error_estimates"].as_array().unwrap();
+    let sorted = v["sorted_frequencies_hz"].as_array().unwrap();
+    assert_eq!(e.len(), 3);
+    for (ev, fv) in e.iter().zip(sorted) {
+        let ev = ev.as_array().unwrap();
+        assert_eq!(ev.len(), fv.as_array().unwrap().len());
+        for x in &ev[..5] {
+            assert!(x.as_f64().is_some_and(|x| x < 1e-3), "{v}");
+        }
+    }
+    let w: Vec<&str> = v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert!(
+        w.iter()
+            .any(|w| w.starts_with("mesh too coarse at ") && w.contains("omega=1 (mode 10")),
+        "{w:?}"
+    );
+}

@@ -147,10 +147,22 @@ pub fn check_statics_mesh(
     refined: impl FnOnce() -> Result<Model, String>,
     stop: Option<&std::sync::atomic::AtomicBool>,
 ) -> Option<MeshError> {
+    check_statics_mesh_keeping(model, sol, refined, stop).0
+}
+
+/// [`check_statics_mesh`], also giving the refined model and its equilibrium where they
+/// were solved (the modes about a static equilibrium measure their own mesh error about
+/// the refined one, without solving it twice).
+pub fn check_statics_mesh_keeping(
+    model: &Model,
+    sol: &mut StaticSolution,
+    refined: impl FnOnce() -> Result<Model, String>,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+) -> (Option<MeshError>, Option<(Model, StaticSolution)>) {
     // without elements there is nothing to refine; a state that needed no Newton
     // correction is the reference configuration (no loads), which no mesh gets wrong
     if model.elem_data.is_empty() || sol.report.newton_iterations == 0 {
-        return None;
+        return (None, None);
     }
     let bound = crate::assembly::largest_deformation_angle(model, &sol.state)
         .and_then(|d| d.warning(None).map(|w| (d, w)));
@@ -190,9 +202,9 @@ pub fn check_statics_mesh(
         {
             return Err("its sensors differ from the model's".into());
         }
-        Ok(fs)
+        Ok((rm, fs))
     });
-    let fine = match fine {
+    let (refined_model, fine) = match fine {
         Ok(f) => f,
         Err(e) => {
             let why = format!(
@@ -203,7 +215,7 @@ pub fn check_statics_mesh(
                 (Some(k), Some((_, w))) => sol.report.warnings[k] = format!("{w} ({why})"),
                 _ => sol.report.warnings.push(format!("mesh error {why}")),
             }
-            return None;
+            return (None, None);
         }
     };
     // where the changes under the loads are measured from: the reference configuration
@@ -335,7 +347,7 @@ pub fn check_statics_mesh(
         )),
         _ => {}
     }
-    Some(check)
+    (Some(check), Some((refined_model, fine)))
 }
 
 /// The diagonal of the box around the model's reference nodes [m].

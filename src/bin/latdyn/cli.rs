@@ -269,6 +269,11 @@ pub(crate) struct ModesArgs {
     /// their identity
     #[arg(long, value_name = "NAME=START:STOP:COUNT", value_parser = latdyn::ensemble::Range::parse)]
     pub(crate) vary: Option<latdyn::ensemble::Range>,
+    /// measure each frequency's mesh error by solving again with every beam's elements
+    /// doubled: `auto` where the refined model has at most 1 500 free coordinates (900 in
+    /// the rotating frame), `always`, or `never`
+    #[arg(long, default_value = "auto", value_parser = ["auto", "always", "never"])]
+    pub(crate) mesh_check: String,
 }
 
 impl ModesArgs {

@@ -2,6 +2,7 @@
 
 use anyhow::{anyhow, Context};
 use latdyn::model::{self, Model};
+use latdyn::solver::modes::{bending_share, mesh_order};
 
 use crate::cli::ModesArgs;
 use crate::emit;
@@ -28,10 +29,11 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
     // the static equilibrium's own warnings (an element beyond its small-deformation
     // range, measured as `statics` measures it) hold for the modes about it
     let mut static_warnings = Vec::new();
+    let mut refined_static = None;
     let state = if preload {
         let mut sol = latdyn::solver::solve_statics(&m)
             .with_context(|| format!("{}: static equilibrium for the modes", m.path))?;
-        latdyn::solver::check_statics_mesh(
+        (_, refined_static) = latdyn::solver::check_statics_mesh_keeping(
             &m,
             &mut sol,
             || {
@@ -58,6 +60,29 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{}: modes", m.path))?;
     md.warnings.splice(0..0, static_warnings);
     let count = args.count().min(md.frequencies_hz.len());
+    let mesh = mesh_check(args, &args.model.set, &m, false, |rm| {
+        let fine_state = match refined_static {
+            Some((_, sol)) => sol.state,
+            None if preload => {
+                latdyn::solver::solve_statics(rm)
+                    .map_err(|e| format!("its static equilibrium: {e}"))?
+                    .state
+            }
+            None => latdyn::joint::State::new(rm),
+        };
+        let fine = latdyn::solver::modes::lowest_modes(rm, &fine_state, count)
+            .map_err(|e| e.to_string())?;
+        Ok(latdyn::solver::modes::mesh_error_by_mode(
+            &md.frequencies_hz[..count],
+            &fine.frequencies_hz,
+            |k| {
+                (!md.zero_frequency[k])
+                    .then(|| mesh_order(bending_share(&m, &state, &[&md.shapes[k]])))
+            },
+        ))
+    });
+    md.warnings
+        .extend(mesh.warning(&md.frequencies_hz[..count], ""));
     md.warnings.extend(fewer_modes(
         args.count_arg,
         md.frequencies_hz.len(),
@@ -73,6 +98,8 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
             "frequencies_hz": f,
             "zero_frequency": &md.zero_frequency[..count],
             "error_estimates": &md.error_estimates[..count],
+            "mesh_error_estimates": mesh.estimates,
+            "mesh_elements": mesh.elements(),
             "warnings": md.warnings,
             "about": if preload { "static" } else { "reference" },
             "free_dofs": m.n_eq,
@@ -111,10 +138,199 @@ pub(crate) fn modes(args: &ModesArgs) -> anyhow::Result<()> {
             } else {
                 ""
             };
-            s += &format!("  {:>3}  {:>14.6} Hz{tag}\n", k + 1, x);
+            s += &format!("  {:>3}  {:>14.6} Hz{}{tag}\n", k + 1, x, mesh.column(k));
         }
         emit(&s)
     }
+}
+
+/// What the mesh check of the modes found ([`mesh_check`]).
+struct MeshCheck {
+    /// per reported mode (None: a zero-frequency mode); None when not measured
+    estimates: Option<Vec<Option<f64>>>,
+    /// elements of the base and the refined model
+    elements: (usize, usize),
+    /// why it was not measured, where it was to be (a warning)
+    not_measured: Option<String>,
+}
+
+impl MeshCheck {
+    fn elements(&self) -> Option<[usize; 2]> {
+        self.estimates
+            .as_ref()
+            .map(|_| [self.elements.0, self.elements.1])
+    }
+
+    /// The warning: the modes above the limit, or why the check could not be made.
+    fn warning(&self, frequencies_hz: &[f64], what: &str) -> Option<String> {
+        if let Some(why) = &self.not_measured {
+            return Some(format!(
+                "{what}mesh error of the frequencies not measured: {why}"
+            ));
+        }
+        latdyn::solver::modes::mesh_warning(
+            frequencies_hz,
+            self.estimates.as_deref()?,
+            self.elements,
+            what,
+        )
+    }
+
+    /// The text output's column for mode `k`.
+    fn column(&self, k: usize) -> String {
+        match self.estimates.as_ref().map(|e| e[k]) {
+            Some(Some(e)) => format!("   mesh error {:>8.2e}", e),
+            Some(None) => format!("   {:>19}", ""),
+            None => String::new(),
+        }
+    }
+}
+
+/// The mesh check ([`mesh_check`]) of the lowest `count` rotating-frame modes `rm` of `m`.
+fn rotating_mesh_check(
+    args: &ModesArgs,
+    set: &[(String, f64)],
+    m: &Model,
+    rm: &latdyn::solver::rotating::RotatingModes,
+    count: usize,
+) -> MeshCheck {
+    let f = &rm.frequencies_hz[..count];
+    mesh_check(args, set, m, true, |fm| {
+        let spin = latdyn::solver::rotating::find_spin(fm)
+            .ok_or("its hub does not turn at a constant speed")?;
+        let fine = latdyn::solver::rotating::rotating_modes(fm, spin).map_err(|e| e.to_string())?;
+        Ok(latdyn::solver::modes::mesh_error_by_mode(
+            f,
+            &fine.frequencies_hz,
+            |k| {
+                (f[k].abs() >= rm.resolution_hz).then(|| {
+                    let share = rm.shapes.get(k).and_then(|z| {
+                        let re: Vec<f64> = z.iter().map(|c| c.re).collect();
+                        let im: Vec<f64> = z.iter().map(|c| c.im).collect();
+                        bending_share(m, &rm.steady, &[&re, &im])
+                    });
+                    mesh_order(share)
+                })
+            },
+        ))
+    })
+}
+
+/// The one warning of `modes --vary` for its mesh checks: the values at which a
+/// frequency's estimated mesh error is above the limit (the first few named, with their
+/// worst mode), or those at which it could not be measured.
+fn vary_mesh_warning(
+    name: &str,
+    values: &[f64],
+    steps: &[latdyn::solver::rotating::RotatingModes],
+    meshes: &[MeshCheck],
+) -> Option<String> {
+    let limit = latdyn::solver::MESH_ERROR_WARN;
+    if let Some((v, c)) = values
+        .iter()
+        .zip(meshes)
+        .find(|(_, c)| c.not_measured.is_some())
+    {
+        return c.warning(&[], &format!("{name}={v}: "));
+    }
+    let over: Vec<String> = values
+        .iter()
+        .zip(steps.iter().zip(meshes))
+        .filter_map(|(v, (st, c))| {
+            let e = c.estimates.as_ref()?;
+            let (k, worst) = e
+                .iter()
+                .enumerate()
+                .filter_map(|(k, x)| x.map(|x| (k, x)))
+                .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
+            (worst > limit).then(|| {
+                format!(
+                    "{name}={v} (mode {} at {:.6} Hz, {:.2} %)",
+                    k + 1,
+                    st.frequencies_hz[k],
+                    100.0 * worst
+                )
+            })
+        })
+        .collect();
+    if over.is_empty() {
+        return None;
+    }
+    let elements = meshes.first().map(|c| c.elements).unwrap_or_default();
+    let shown = latdyn::solver::modes::MESH_WARNING_NAMED.min(over.len());
+    let mut list = over[..shown].join(", ");
+    if over.len() > shown {
+        list += &format!(" and {} more", over.len() - shown);
+    }
+    Some(format!(
+        "mesh too coarse at {} of the {} values: {list}: the estimated mesh error of a \
+         frequency is above the {} % limit (the worst mode at each value; all in \
+         `mesh_error_estimates`; measured by solving again with twice the elements, {} in \
+         all against {}; Richardson). Use more elements",
+        over.len(),
+        values.len(),
+        100.0 * limit,
+        elements.1,
+        elements.0
+    ))
+}
+
+/// Free coordinates of the refined model up to which `--mesh-check auto` measures: its
+/// dense analysis grows as n³, measured on the cantilever at 3.1 s for 1 200 and 9.8 s
+/// for 1 800 coordinates, 2.4 s and 6.2 s for 600 and 900 in the rotating frame (the
+/// first-order form is twice the size), so about 6 s either way on top of an analysis
+/// of an eighth of that.
+const MESH_CHECK_DOFS: usize = 1500;
+const MESH_CHECK_DOFS_ROTATING: usize = 900;
+
+/// The mesh error of the modes of `m`: the model compiled again with every beam's
+/// elements doubled (`MESH_REFINE`), given to `fine`, which returns the estimate per
+/// reported mode. Models without beams have no mesh; `--mesh-check never` skips it;
+/// under `auto` a refined model above [`MESH_CHECK_DOFS`] is not solved and the result
+/// says why.
+fn mesh_check(
+    args: &ModesArgs,
+    set: &[(String, f64)],
+    m: &Model,
+    rotating: bool,
+    fine: impl FnOnce(&Model) -> Result<Vec<Option<f64>>, String>,
+) -> MeshCheck {
+    let refine = latdyn::solver::MESH_REFINE;
+    let elements = (m.elem_data.len(), m.elem_data.len() * refine);
+    let mut out = MeshCheck {
+        estimates: None,
+        elements,
+        not_measured: None,
+    };
+    if m.elem_data.is_empty() || args.mesh_check == "never" {
+        return out;
+    }
+    let result = model::load_refined(&args.model.model, set, refine)
+        .map_err(|e| format!("twice the elements ({} in all) do not compile: {e}", elements.1))
+        .and_then(|rm| {
+            let bound = if rotating {
+                MESH_CHECK_DOFS_ROTATING
+            } else {
+                MESH_CHECK_DOFS
+            };
+            if args.mesh_check == "auto" && rm.n_eq > bound {
+                return Err(format!(
+                    "twice the elements ({} in all) give {} free coordinates, above the {bound}                      the check makes by itself (a dense analysis, about 8 times as long as                      this one); `--mesh-check always` measures it",
+                    elements.1, rm.n_eq
+                ));
+            }
+            fine(&rm).map_err(|e| {
+                format!(
+                    "solving again with twice the elements ({} in all) failed: {e}",
+                    elements.1
+                )
+            })
+        });
+    match result {
+        Ok(e) => out.estimates = Some(e),
+        Err(why) => out.not_measured = Some(why),
+    }
+    out
 }
 
 /// The warning when an explicit `--count` asks for more modes than the analysis has
@@ -152,7 +368,8 @@ pub(crate) fn rotating_modes(
     m: &Model,
     spin: latdyn::solver::rotating::SteadySpin,
 ) -> anyhow::Result<()> {
-    let rm = latdyn::solver::rotating::rotating_modes(m, spin)
+    // the shapes tell bending modes from others for the mesh check's order
+    let rm = latdyn::solver::rotating::rotating_modes_with_shapes(m, spin, args.count())
         .with_context(|| format!("{}: rotating-frame modes", m.path))?;
     let count = args.count().min(rm.frequencies_hz.len());
     let f = &rm.frequencies_hz[..count];
@@ -164,6 +381,8 @@ pub(crate) fn rotating_modes(
         " in the rotating frame",
     ));
     warnings.extend(rm.resolution_warning(count));
+    let mesh = rotating_mesh_check(args, &args.model.set, m, &rm, count);
+    warnings.extend(mesh.warning(f, ""));
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
@@ -171,6 +390,8 @@ pub(crate) fn rotating_modes(
         let v = serde_json::json!({
             "frequencies_hz": f,
             "damping_ratios": &rm.damping[..count],
+            "mesh_error_estimates": mesh.estimates,
+            "mesh_elements": mesh.elements(),
             "about": "steady_rotation",
             "omega_rad_s": rm.omega,
             "free_dofs": m.n_eq,
@@ -183,7 +404,7 @@ pub(crate) fn rotating_modes(
             m.name, rm.omega, m.n_eq
         );
         for (k, x) in f.iter().enumerate() {
-            s += &format!("  {:>3}  {:>14.6} Hz\n", k + 1, x);
+            s += &format!("  {:>3}  {:>14.6} Hz{}\n", k + 1, x, mesh.column(k));
         }
         emit(&s)
     }
@@ -217,6 +438,7 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
     let mut steps = Vec::with_capacity(values.len());
     let mut warnings: Vec<String> = Vec::new();
     let mut free_dofs = 0;
+    let mut meshes = Vec::with_capacity(values.len());
     for &v in &values {
         let mut set = args.model.set.clone();
         set.retain(|(n, _)| *n != range.name);
@@ -257,7 +479,13 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
             eprintln!("warning: {}: {}={v}: {w}", m.path, range.name);
             warnings.push(format!("{}={v}: {w}", range.name));
         }
+        let count = args.count().min(rm.frequencies_hz.len());
+        meshes.push(rotating_mesh_check(args, &set, &m, &rm, count));
         steps.push(rm);
+    }
+    if let Some(w) = vary_mesh_warning(&range.name, &values, &steps, &meshes) {
+        eprintln!("warning: {}: {w}", args.model.model.display());
+        warnings.push(w);
     }
     let branches = rotating::track_branches(&steps, args.count());
     // the fewest modes of any value bound what is followed and sorted
@@ -292,6 +520,8 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
             "omega_rad_s": speeds,
             "branches": list,
             "sorted_frequencies_hz": sorted,
+            "mesh_error_estimates": meshes.iter().map(|c| c.estimates.clone()).collect::<Vec<_>>(),
+            "mesh_elements": meshes.first().and_then(|c| c.elements()),
             "free_dofs": free_dofs,
             "warnings": warnings,
         });
