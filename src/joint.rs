@@ -218,6 +218,25 @@ pub fn apply_increment(model: &Model, s: &mut State, dx: &[f64]) {
     }
 }
 
+/// The states `base` ± h·`direction` (by equation index; spins turned through the
+/// exponential map), with h = 1e-6 / max|direction|, and h: a mode shape linearised by
+/// central differences, (f(s₊) − f(s₋)) / 2h. None for a zero or non-finite direction.
+pub fn poses_about(model: &Model, base: &State, direction: &[f64]) -> Option<(State, State, f64)> {
+    let big = direction.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if big == 0.0 || !big.is_finite() {
+        return None;
+    }
+    let h = 1e-6 / big;
+    let pose = |sgn: f64| {
+        let dx: Vec<f64> = direction.iter().map(|x| sgn * h * x).collect();
+        let mut s = base.clone();
+        apply_increment(model, &mut s, &dx);
+        update_kinematics(model, &mut s);
+        s
+    };
+    Some((pose(1.0), pose(-1.0), h))
+}
+
 fn body_pose(model: &Model, s: &State, b: usize) -> (Vec3, Mat3) {
     let body = &model.bodies[b];
     let mut x = body.x0;

@@ -1009,13 +1009,18 @@ fn the_modes_mesh_check_is_skipped_only_when_asked_or_said() {
     );
     assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
     // 130 elements: 780 free coordinates, 1 560 refined
-    let v = modes_json(&[
-        "models/cantilever.toml",
-        "--set",
-        "elements=130",
-        "--count",
-        "2",
-    ]);
+    let fine = |check: &str| {
+        modes_json(&[
+            "models/cantilever.toml",
+            "--set",
+            "elements=130",
+            "--count",
+            "2",
+            "--mesh-check",
+            check,
+        ])
+    };
+    let v = fine("auto");
     assert!(v["mesh_error_estimates"].is_null(), "{v}");
     let w = warnings(&v);
     assert!(
@@ -1025,15 +1030,7 @@ fn the_modes_mesh_check_is_skipped_only_when_asked_or_said() {
             && w[0].contains("--mesh-check always"),
         "{w:?}"
     );
-    let v = modes_json(&[
-        "models/cantilever.toml",
-        "--set",
-        "elements=130",
-        "--count",
-        "2",
-        "--mesh-check",
-        "always",
-    ]);
+    let v = fine("always");
     // the mesh's own error is about 1e-11 here; what the two solves read is their
     // round-off (`error_estimates` 6.5e-7), measured 9.7e-8
     let e = v["mesh_error_estimates"][0].as_f64().unwrap();

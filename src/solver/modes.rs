@@ -803,19 +803,9 @@ pub fn mesh_warning(
 pub fn bending_share(model: &Model, base: &State, parts: &[&[f64]]) -> Option<f64> {
     let (mut bend, mut total) = (0.0, 0.0);
     for p in parts {
-        let big = p.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        if big == 0.0 || !big.is_finite() {
+        let Some((sp, sm, h)) = joint::poses_about(model, base, p) else {
             continue;
-        }
-        let h = 1e-6 / big;
-        let pose = |sgn: f64| {
-            let dx: Vec<f64> = p.iter().map(|x| sgn * h * x).collect();
-            let mut s = base.clone();
-            joint::apply_increment(model, &mut s, &dx);
-            joint::update_kinematics(model, &mut s);
-            s
         };
-        let (sp, sm) = (pose(1.0), pose(-1.0));
         for (ie, e) in model.elem_data.iter().enumerate() {
             let kp = crate::element::deformation(e, &joint::elem_state(model, &sp, ie));
             let km = crate::element::deformation(e, &joint::elem_state(model, &sm, ie));

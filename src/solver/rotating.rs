@@ -607,19 +607,9 @@ pub fn deformation_share(model: &Model, base: &State, shape: &[C64]) -> f64 {
             .iter()
             .map(|z| if part == 0 { z.re } else { z.im })
             .collect();
-        let big = p.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        if big == 0.0 || !big.is_finite() {
+        let Some((sp, sm, h)) = joint::poses_about(model, base, &p) else {
             continue;
-        }
-        let h = 1e-6 / big;
-        let pose = |sgn: f64| {
-            let dx: Vec<f64> = p.iter().map(|x| sgn * h * x).collect();
-            let mut s = base.clone();
-            joint::apply_increment(model, &mut s, &dx);
-            joint::update_kinematics(model, &mut s);
-            s
         };
-        let (sp, sm) = (pose(1.0), pose(-1.0));
         for beam in &model.beams {
             let x: Vec<Vec3> = beam
                 .nodes
