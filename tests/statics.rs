@@ -370,14 +370,30 @@ fn an_inverted_pendulum_found_by_statics_is_said_to_be_unstable() {
 /// Q (tan kL − kL)/(|P| k) in compression, k = √(|P|/EI). Until session 45 Newton
 /// stopped after the first correction, whose residual (the geometric stiffness of P on
 /// the linear deflection, 3e-9 of P) passed the force test: the tip read the linear
-/// QL³/3EI, 79 % off in tension. Tolerance 1e-3: the 16-element mesh's own error is
-/// 3.1e-4 (the same at Q = 1 N, where Newton always iterated).
+/// QL³/3EI, 79 % off in tension. A probe then found the first fix stopping at the
+/// linear deflection too, 36× too small, at EA = 1e9 and 0.97 P_cr (its second
+/// correction was as large as the first, and "no longer falling" was read as round-off).
+/// Tolerance 1e-3: the 16-element mesh's own error is 3.1e-4 (the same at Q = 1 N,
+/// where Newton always iterated).
 #[test]
 fn a_tiny_transverse_load_beside_a_large_axial_one_is_converged_too() {
     let (ei, l) = (100.0, 1.0);
-    for p in [200.0, -100.0] {
-        for q in [1e-6, 1e-9, 1.0] {
-            let m = straight_beam("clamped", 16, BEAM_PROPS, [p, 0.0, q], [0.0; 3], "");
+    let stiff = BEAM_PROPS.replace("EA = 1.0e7", "EA = 1.0e9");
+    assert_ne!(stiff, BEAM_PROPS);
+    for (p, props) in [
+        (200.0, BEAM_PROPS),
+        (-100.0, BEAM_PROPS),
+        (-240.0, stiff.as_str()),
+    ] {
+        // (near P_cr a 1 N side load deflects the tip 0.1 m: no longer the linear
+        // beam-column)
+        let loads: &[f64] = if p == -240.0 {
+            &[1e-6, 1e-9]
+        } else {
+            &[1e-6, 1e-9, 1.0]
+        };
+        for &q in loads {
+            let m = straight_beam("clamped", 16, props, [p, 0.0, q], [0.0; 3], "");
             let sol = solve_statics(&m).unwrap();
             let w = sensor(&m, &sol.sensors, "tip")[2];
             let k: f64 = (p.abs() / ei).sqrt();

@@ -88,6 +88,8 @@ pub fn newton(
     // coordinates' round-off (the iterations reported: an unloaded curved mesh takes one
     // correction at round-off and is still the reference configuration)
     let mut last_correction = f64::INFINITY;
+    // the correction at the last state whose residual passed but whose correction did not
+    let mut pending = None;
     let mut counted = 0;
     let roundoff = Convergence::ROUNDOFF_CORRECTION * asm.eval.unit_roundoff() * coord_scale(model);
     for it in 0..model.solver.max_iter.max(1) {
@@ -112,15 +114,7 @@ pub fn newton(
         // reactions 0
         let stalled = conv.stalled_at_roundoff(last_correction, coord_scale(model));
         if (conv.converged(res, scale)
-            && (!factored
-                || settled(
-                    model,
-                    sys,
-                    &mut dx,
-                    first + travel,
-                    roundoff,
-                    last_correction,
-                )))
+            && (!factored || settled(model, sys, &mut dx, first + travel, roundoff, &mut pending)))
             || stalled
         {
             return Ok(crate::assembly::deformation_in_range(model, s).then_some(counted));
@@ -159,25 +153,33 @@ pub fn newton(
 /// axially and 1e-6 N across stopped after the first correction, its transverse
 /// residual 3e-9 of the axial force, with the tip deflection 81 % off the beam-column
 /// formula (the axial load's geometric stiffness not yet applied to it). The factor at
-/// that state is at hand, so the test costs one solve; where it fails Newton goes on.
-/// A correction that no longer falls below half the last (`last`) is the solve's
-/// round-off, not an unconverged load (an ill-conditioned K turns the residual's noise
-/// into corrections above the coordinates' round-off): settled too, so the test never
-/// turns a converged solve into a failed one.
+/// that state is at hand, so the test costs one solve; where it fails Newton goes on,
+/// and `pending` keeps that correction. A correction that then no longer falls below
+/// half the pending one is the solve's round-off, not an unconverged load (an
+/// ill-conditioned K turns the residual's noise into corrections above the coordinates'
+/// round-off): settled too, so the test never turns a converged solve into a failed
+/// one. It is compared with the pending correction, not the last one: at EA = 1e9 the
+/// first correction (the axial shortening, 2.4e-7 m) and the second (the side load's
+/// deflection under the axial force, 1.9e-7) are of one size, and a comparison with the
+/// first stopped at the linear deflection, 36× too small near the buckling load.
 fn settled(
     model: &Model,
     sys: &mut NewtonSystem,
     dx: &mut [f64],
     moved: f64,
     roundoff: f64,
-    last: f64,
+    pending: &mut Option<f64>,
 ) -> bool {
     if sys.solve_neg_residual(dx).is_err() {
         return true;
     }
     crate::assembly::limit_rotation_step(model, dx, MAX_NEWTON_ANGLE);
     let step = norm_inf(dx);
-    step <= (model.solver.tol * moved).max(roundoff) || step > 0.5 * last
+    if step <= (model.solver.tol * moved).max(roundoff) || pending.is_some_and(|p| step > 0.5 * p) {
+        return true;
+    }
+    *pending = Some(step);
+    false
 }
 
 /// Largest distance of a node from the first: the size of the model's coordinates.
