@@ -282,6 +282,22 @@ impl SparsePattern {
     }
 }
 
+impl SparsePattern {
+    /// (xᵀAx, Σ |Aᵢⱼ xᵢ xⱼ|): a quadratic form and the sum its round-off is relative to.
+    pub fn quadratic_form(&self, values: &[f64], x: &[f64]) -> (f64, f64) {
+        let (cp, ri) = (self.col_ptr(), self.row_idx());
+        let (mut q, mut size) = (0.0, 0.0);
+        for j in 0..self.n {
+            for k in cp[j]..cp[j + 1] {
+                let t = values[k] * x[ri[k]] * x[j];
+                q += t;
+                size += t.abs();
+            }
+        }
+        (q, size)
+    }
+}
+
 fn csc_mul_vec(s: &SymbolicSparseColMat<usize>, values: &[f64], x: &[f64], y: &mut [f64]) {
     let n = s.ncols();
     assert!(values.len() == s.row_idx().len() && x.len() == n && y.len() == s.nrows());
