@@ -199,6 +199,10 @@ fn rotating_mesh_check(
         let spin = latdyn::solver::rotating::find_spin(fm)
             .ok_or("its hub does not turn at a constant speed")?;
         let fine = latdyn::solver::rotating::rotating_modes(fm, spin).map_err(|e| e.to_string())?;
+        // modes about a state that is not an equilibrium compare with nothing
+        if !fine.steady_converged {
+            return Err("Newton found no steady rotating state of the refined model".into());
+        }
         Ok(latdyn::solver::modes::mesh_error_by_mode(
             f,
             &fine.frequencies_hz,
