@@ -499,6 +499,12 @@ fn past_the_axial_divergence_modes_warn_and_a_steady_start_fails_with_the_reason
             .filter(|w| w.contains("steady rotating state was not found"))
             .count();
         assert_eq!(steady, usize::from(diverged), "{ea}: {v}");
+        // nor can the mesh check compare with the refined model's modes there
+        let unmeasured = warnings(&v).iter().any(|w| {
+            w.starts_with("mesh error of the frequencies not measured")
+                && w.contains("no steady rotating state of the refined model")
+        });
+        assert_eq!(unmeasured, diverged, "{ea}: {v}");
         let run = latdyn(&[
             "run",
             m,
