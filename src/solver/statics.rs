@@ -151,7 +151,7 @@ pub fn newton(
 /// (`moved`), or their round-off. The residual is judged against the largest force, so
 /// a small load beside a large one can be wholly unconverged: a cantilever under 200 N
 /// axially and 1e-6 N across stopped after the first correction, its transverse
-/// residual 3e-9 of the axial force, with the tip deflection 81 % off the beam-column
+/// residual 3e-9 of the axial force, with the tip deflection 79 % off the beam-column
 /// formula (the axial load's geometric stiffness not yet applied to it). The factor at
 /// that state is at hand, so the test costs one solve; where it fails Newton goes on,
 /// and `pending` keeps that correction. A correction that then no longer falls below
@@ -305,8 +305,9 @@ pub fn solve_until(
 /// ([`negative_direction`]). Cost: one assembly, two sparse LUs, one sparse Cholesky
 /// and 24 solves with the factor.
 fn unstable(model: &Model, asm: &Assembler, sys: &mut NewtonSystem, s: &State) -> Option<String> {
-    // factored for the inverse iteration; a singular tangent (a free hinge at rest) is
-    // left to the other two tests
+    // factored for the Krylov search; a tangent that cannot be factored (a free hinge
+    // at rest) leaves the last Newton factor, of a K next to this one, which serves the
+    // search as well: only the form of the assembled K itself decides
     sys.evaluate(model, asm, s, Coeffs::statics(1.0), true)
         .or_else(|_| sys.evaluate(model, asm, s, Coeffs::statics(1.0), false))
         .ok()?;
