@@ -1,16 +1,9 @@
 //! `latdyn modes --vary`: rotating-frame modes followed across rotor speeds, as JSON for
 //! the Campbell diagram, and `plot --campbell --modes` drawing those branches.
 
+mod common;
+use common::{latdyn, latdyn_json};
 use std::path::PathBuf;
-use std::process::{Command, Output};
-
-fn latdyn(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_latdyn"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run latdyn")
-}
 
 fn out(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("latdyn-modes-vary-{}", std::process::id()));
@@ -146,15 +139,13 @@ fn modes_vary_errors_are_clear_and_exit_2() {
 /// 1e-3 at every speed).
 #[test]
 fn modes_vary_measures_the_mesh_error_at_every_value() {
-    let o = latdyn(&[
+    let v = latdyn_json(&[
         "modes",
         "models/flapping_blade.toml",
         "--vary",
         "omega=1:40:3",
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
     let e = v["mesh_error_estimates"].as_array().unwrap();
     let sorted = v["sorted_frequencies_hz"].as_array().unwrap();
     assert_eq!(e.len(), 3);

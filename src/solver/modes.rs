@@ -738,6 +738,13 @@ pub fn mesh_error_by_mode(
 /// Modes named one by one in the mesh warning ([`mesh_warning`]); the rest are counted.
 pub const MESH_WARNING_NAMED: usize = 6;
 
+/// The first [`MESH_WARNING_NAMED`] of `items` joined by commas, and how many are left
+/// out (a mesh warning names a few and counts the rest).
+pub fn first_named(items: &[String]) -> (String, usize) {
+    let shown = MESH_WARNING_NAMED.min(items.len());
+    (items[..shown].join(", "), items.len() - shown)
+}
+
 /// The warning naming the modes whose estimated mesh error ([`mesh_error_by_mode`]) is
 /// above [`crate::solver::MESH_ERROR_WARN`], or None; `elements` = (base, refined)
 /// element count, `what` a prefix for the modes ("" or "at omega=3: ").
@@ -769,14 +776,9 @@ pub fn mesh_warning(
         .iter()
         .flatten()
         .fold(0.0f64, |a, &e| if e > limit { a.max(e) } else { a });
-    let shown = MESH_WARNING_NAMED.min(over.len());
-    let mut list = over[..shown].join(", ");
-    if over.len() > shown {
-        list += &format!(
-            " and {} more (the largest {:.2} %)",
-            over.len() - shown,
-            100.0 * worst
-        );
+    let (mut list, more) = first_named(&over);
+    if more > 0 {
+        list += &format!(" and {more} more (the largest {:.2} %)", 100.0 * worst);
     }
     (!over.is_empty()).then(|| {
         format!(

@@ -261,10 +261,9 @@ fn vary_mesh_warning(
         return None;
     }
     let elements = meshes.first().map(|c| c.elements).unwrap_or_default();
-    let shown = latdyn::solver::modes::MESH_WARNING_NAMED.min(over.len());
-    let mut list = over[..shown].join(", ");
-    if over.len() > shown {
-        list += &format!(" and {} more", over.len() - shown);
+    let (mut list, more) = latdyn::solver::modes::first_named(&over);
+    if more > 0 {
+        list += &format!(" and {more} more");
     }
     Some(format!(
         "mesh too coarse at {} of the {} values: {list}: the estimated mesh error of a \
