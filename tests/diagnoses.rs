@@ -56,17 +56,6 @@ fn pinned_cantilever_statics_names_the_three_rotations_about_the_pin() {
     assert_eq!(twist.matches(".rx").count(), 5, "{twist}");
 }
 
-/// A mechanism (the four-bar's sway): the free motion lists its hinge angles.
-#[test]
-fn mechanism_statics_names_the_hinges_of_the_free_motion() {
-    let out = latdyn(&["statics", "models/fourbar.toml"]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("free motion"), "{err}");
-    assert!(err.contains("g1.angle"), "{err}");
-    assert!(!err.contains("stuck"), "{err}");
-}
-
 /// Zero load on the curved bend: the reference is the equilibrium, zero Newton
 /// iterations (was "load factor stuck at 0.000000", the residual being round-off of a
 /// curved mesh with no force scale to compare it to).

@@ -326,6 +326,56 @@ impl NewtonSystem {
         Ok(info)
     }
 
+    /// [`NewtonSystem::evaluate`] with factoring, where a singular Jacobian is factored
+    /// with `shift` times each diagonal entry's magnitude added to that entry instead (the
+    /// largest of its unit group where the entry is zero). Returns the assembly and
+    /// whether the factor is of the Jacobian itself (`Some(false)`: shifted; `None`: not
+    /// even that could be factored, or the evaluation failed before it). See
+    /// [`crate::solver::statics::SINGULAR_SHIFT`] for why statics takes such a step.
+    pub fn evaluate_shifting(
+        &mut self,
+        model: &Model,
+        asm: &Assembler,
+        s: &State,
+        c: Coeffs,
+        shift: f64,
+    ) -> (Option<AssemblyInfo>, Option<bool>) {
+        let info = match block_on(self.evaluate_matrix(model, asm, s, c, true, false, false)) {
+            Ok(i) => i,
+            Err(_) => return (None, None),
+        };
+        let t0 = Instant::now();
+        let plain = self.lu.factor(&self.values);
+        let factored = match plain {
+            Ok(()) => Some(true),
+            Err(LinalgError::Singular { .. }) => {
+                let groups = self.lu.unit_groups();
+                let n = self.pattern.n();
+                let diag: Vec<usize> = (0..n)
+                    .map(|i| self.pattern.slot(i, i).expect("the pattern holds the diagonal"))
+                    .collect();
+                let mut group_max = vec![0.0f64; groups.iter().max().map_or(1, |g| g + 1)];
+                for (i, &k) in diag.iter().enumerate() {
+                    let g = groups.get(i).copied().unwrap_or(0);
+                    group_max[g] = group_max[g].max(self.values[k].abs());
+                }
+                let mut shifted = self.values.clone();
+                for (i, &k) in diag.iter().enumerate() {
+                    let g = groups.get(i).copied().unwrap_or(0);
+                    let a = self.values[k].abs();
+                    let size = if a > 0.0 { a } else { group_max[g] };
+                    // added with the entry's own sign: a negative pivot (a compressed
+                    // mechanism) is not pushed through zero
+                    shifted[k] += shift * size * if self.values[k] < 0.0 { -1.0 } else { 1.0 };
+                }
+                self.lu.factor(&shifted).ok().map(|_| false)
+            }
+            Err(_) => None,
+        };
+        self.times.factorization_s += t0.elapsed().as_secs_f64();
+        (Some(info), factored)
+    }
+
     /// Nonzeros of the Jacobian pattern and of its LU factor (L + U) for the values last
     /// assembled (see [`SparseLuSymbolic::factor_nnz`]); `None` for the factor when those
     /// values cannot be factored.

@@ -421,7 +421,7 @@ impl Ctx<'_> {
     fn newton_fixed(&mut self, s: &mut State, mu: f64) -> Result<Option<usize>, StaticsError> {
         self.place(s, mu);
         let lf = self.load_factor(mu);
-        statics::newton(self.model, &self.asm, &mut self.sys, s, lf)
+        statics::newton(self.model, &self.asm, &mut self.sys, s, lf, None)
     }
 }
 

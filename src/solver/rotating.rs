@@ -357,7 +357,7 @@ impl RotatingModes {
             .iter()
             .take(count)
             .enumerate()
-            .filter(|(_, f)| **f < self.resolution_hz)
+            .filter(|(_, f)| f.abs() < self.resolution_hz)
             .map(|(k, f)| format!("{} ({f:.3e} Hz)", k + 1))
             .collect();
         (!low.is_empty()).then(|| {
@@ -370,6 +370,50 @@ impl RotatingModes {
                 if low.len() > 1 { "s" } else { "" },
                 low.join(", "),
                 self.resolution_hz
+            )
+        })
+    }
+
+    /// The modes among the first `count` whose motion grows about the steady state: a
+    /// divergence (a real root s > 0, reported as −s/2π Hz) or a flutter (a complex pair
+    /// whose real part exceeds the eigen-solver's round-off, damping ratio < 0). One
+    /// warning naming each with its growth rate, or None. Until session 46 neither was
+    /// warned, and a divergence was not even listed.
+    pub fn instability_warning(&self, count: usize) -> Option<String> {
+        let two_pi = 2.0 * std::f64::consts::PI;
+        let tol = two_pi * self.resolution_hz;
+        let unstable: Vec<String> = (0..count.min(self.frequencies_hz.len()))
+            .filter_map(|k| {
+                let (f, z) = (self.frequencies_hz[k], self.damping[k]);
+                if f < 0.0 {
+                    return Some(format!(
+                        "{} (divergence: grows at {:.6} 1/s without oscillating, reported as \
+                         {f:.6} Hz)",
+                        k + 1,
+                        -two_pi * f
+                    ));
+                }
+                let growth = -z * two_pi * f / (1.0 - z * z).max(f64::MIN_POSITIVE).sqrt();
+                (z < 0.0 && growth > tol).then(|| {
+                    format!(
+                        "{} (flutter at {f:.6} Hz: grows at {growth:.6} 1/s, damping ratio \
+                         {z:.3e})",
+                        k + 1
+                    )
+                })
+            })
+            .collect();
+        (!unstable.is_empty()).then(|| {
+            let (named, more) = crate::solver::modes::first_named(&unstable);
+            let more = match more {
+                0 => String::new(),
+                k => format!(" and {k} more"),
+            };
+            format!(
+                "the steady rotation is unstable in mode{} {named}{more}: a disturbance grows \
+                 instead of vibrating about it (a spinning shaft between the critical speeds \
+                 of its two bending stiffnesses diverges); `latdyn run` shows the growth",
+                if unstable.len() > 1 { "s" } else { "" },
             )
         })
     }
@@ -1069,6 +1113,17 @@ pub fn quadratic_modes(
         .collect();
     reals.sort_by(|p, q| p.abs().total_cmp(&q.abs()));
     reals.truncate(reals.len().div_ceil(2));
+    // A real root beyond the round-off that is positive is a divergence: the motion grows
+    // as e^{st} without oscillating (a shaft of unequal bending stiffnesses spinning
+    // between its two critical speeds). It is reported as the non-rotating analysis
+    // reports a negative stiffness, −s/2π "Hz", with damping ratio −1; until session 46
+    // it was left out, and the analysis read as stable. (Its mirror root −s, and the
+    // real roots of an overdamped mode, both decaying, are not modes of their own here.)
+    let growing: Vec<f64> = ev
+        .iter()
+        .filter(|(re, im)| *im == 0.0 && *re > tol0)
+        .map(|(re, _)| *re)
+        .collect();
     let mut modes: Vec<(f64, f64, f64, f64)> = ev
         .into_iter()
         .filter(|(_, im)| *im > 0.0)
@@ -1077,6 +1132,11 @@ pub fn quadratic_modes(
             (im / (2.0 * std::f64::consts::PI), -re / wn, re, im)
         })
         .chain(reals.into_iter().map(|re| (0.0, 0.0, re, 0.0)))
+        .chain(
+            growing
+                .into_iter()
+                .map(|s| (-s / (2.0 * std::f64::consts::PI), -1.0, s, 0.0)),
+        )
         .collect();
     modes.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut out_shapes = Vec::new();

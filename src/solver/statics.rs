@@ -78,6 +78,7 @@ pub fn newton(
     sys: &mut NewtonSystem,
     s: &mut State,
     lambda: f64,
+    mut shift: Option<&mut bool>,
 ) -> Result<Option<usize>, StaticsError> {
     let c = Coeffs::statics(lambda);
     let mut dx = vec![0.0; model.n_eq];
@@ -92,11 +93,20 @@ pub fn newton(
     let mut pending = None;
     let mut counted = 0;
     let roundoff = Convergence::ROUNDOFF_CORRECTION * asm.eval.unit_roundoff() * coord_scale(model);
+    // whether the last factor was of the shifted tangent (see `SINGULAR_SHIFT`)
+    let mut shifted_factor = false;
     for it in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
-        let (info, factored) = match sys.evaluate(model, asm, s, c, true) {
-            Ok(i) => (Some(i), true),
-            Err(_) => (None, false),
+        let (info, factored) = match shift.as_deref_mut() {
+            Some(_) => {
+                let (info, factor) = sys.evaluate_shifting(model, asm, s, c, SINGULAR_SHIFT);
+                shifted_factor = factor == Some(false);
+                (info, factor.is_some())
+            }
+            None => match sys.evaluate(model, asm, s, c, true) {
+                Ok(i) => (Some(i), true),
+                Err(_) => (None, false),
+            },
         };
         let res = norm_inf(&sys.r);
         if !res.is_finite() {
@@ -127,6 +137,11 @@ pub fn newton(
         last_correction = step;
         if step > roundoff {
             counted += 1;
+            // a correction the tangent itself could not give (a zero-load mechanism at
+            // rest takes none, and its reference is its equilibrium, as before)
+            if let Some(used) = shift.as_deref_mut() {
+                *used |= shifted_factor;
+            }
         }
         if it == 0 {
             first = step;
@@ -191,6 +206,19 @@ pub(crate) fn coord_scale(model: &Model) -> f64 {
     })
 }
 
+/// A tangent that is singular at the reference (a hinged beam hanging under its weight,
+/// a four-bar standing in gravity: mechanisms whose stiffness along the motion comes
+/// only from the axial forces the loads cause) cannot start Newton, though the loads
+/// hold it: the reference has no axial force yet. Newton's steps from the reference then
+/// factor the tangent with this share of each diagonal entry added to it: a load that
+/// does no work along the free motion (gravity along a hanging beam) gives a step
+/// without it, after which the axial forces stiffen (or, compressed, destabilise) the
+/// motion and Newton goes on with the tangent itself. Small against every real stiffness
+/// after the LU's unit scaling, far above the LU's singularity limit (n ε); an error in
+/// the soft directions of the one shifted step is Newton's to correct. A motion still
+/// free at the solution is reported as before (see `solve_until`).
+pub const SINGULAR_SHIFT: f64 = 1e-6;
+
 /// Most load steps (accepted + rejected) of one solve: 20 halvings below the smallest
 /// step are already a stall; this bounds a solve that creeps at tiny steps (each
 /// converging, none growing) instead of letting it run for 1e7 steps.
@@ -236,6 +264,8 @@ pub fn solve_until(
     // a solve creeping at a rate that cannot reach λ = 1 within MAX_LOAD_STEPS is a
     // stall now, not after the whole budget (a fuzzer input took 21 s to reach the cap)
     let mut window = (0usize, lambda);
+    // whether a Newton step from the reference was taken with a shifted tangent
+    let mut shifted = false;
     while lambda < 1.0 {
         if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst)) {
             return Err(StaticsError::Interrupted { lambda });
@@ -253,7 +283,9 @@ pub fn solve_until(
         }
         let target = (lambda + dl).min(1.0);
         let saved = s.clone();
-        match newton(model, &asm, &mut sys, s, target)? {
+        // from the reference only: a mechanism that its loads hold (see `SINGULAR_SHIFT`)
+        let shift = (rep.load_steps == 0).then_some(&mut shifted);
+        match newton(model, &asm, &mut sys, s, target, shift)? {
             Some(iters) => {
                 lambda = target;
                 rep.load_steps += 1;
@@ -285,6 +317,24 @@ pub fn solve_until(
         }
     }
     joint::update_kinematics(model, s);
+    if shifted {
+        // the loads must hold what the reference's stiffness did not: a motion still
+        // free at the solution leaves the equilibrium undetermined (a free body at rest,
+        // a mechanism whose loads do no work along it), which is the error it was
+        if sys.evaluate(model, &asm, s, Coeffs::statics(1.0), true).is_err() {
+            match free_motions(model, s, 1.0) {
+                Some(e) => return Err(e),
+                None if model.n_eq > MAX_DIAGNOSIS_DOFS => rep.warnings.push(
+                    "the tangent stiffness at the equilibrium found is singular to working \
+                     precision (a motion the loads do not hold, or stiffnesses too far apart \
+                     to factor), and the model is too large to name its free motions: the \
+                     equilibrium may not be the only one"
+                        .to_string(),
+                ),
+                None => {}
+            }
+        }
+    }
     rep.warnings
         .extend(crate::assembly::deformation_angle_warning(model, s));
     rep.warnings.extend(passed_locks(model, s));

@@ -384,6 +384,7 @@ pub(crate) fn rotating_modes(
         " in the rotating frame",
     ));
     warnings.extend(rm.resolution_warning(count));
+    warnings.extend(rm.instability_warning(count));
     let mesh = rotating_mesh_check(args, &args.model.set, m, &rm, count);
     warnings.extend(mesh.warning(f, ""));
     for w in &warnings {
@@ -483,6 +484,10 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
             warnings.push(format!("{}={v}: {w}", range.name));
         }
         let count = args.count().min(rm.frequencies_hz.len());
+        if let Some(w) = rm.instability_warning(count) {
+            eprintln!("warning: {}: {}={v}: {w}", m.path, range.name);
+            warnings.push(format!("{}={v}: {w}", range.name));
+        }
         meshes.push(rotating_mesh_check(args, &set, &m, &rm, count));
         steps.push(rm);
     }

@@ -1,0 +1,170 @@
+//! Statics and modes of mechanisms that their loads hold: a beam hinged at its top and
+//! hanging under its weight, a parallelogram four-bar hanging or standing in gravity.
+//! Their stiffness along the swing comes only from the axial forces gravity causes, so
+//! the tangent at the unloaded reference is singular; until session 46 `statics` and
+//! `modes` stopped there with "a mechanism or a body that is not held".
+
+mod common;
+use common::*;
+
+/// The hinged beam: uniform, length L, pivot at the top about y, hanging along −z.
+fn hanging_beam(ei: f64, gravity: f64) -> String {
+    format!(
+        r#"[model]
+name = "hanging_beam"
+[parameters]
+EI = {ei}
+L = 1.0
+elements = 8
+[environment]
+gravity = [0, 0, {gravity}]
+[sections.s]
+EA = 1e7
+EIy = "EI"
+EIz = "EI"
+GJ = "EI"
+rhoA = 1.0
+rhoIy = 1e-8
+rhoIz = 1e-8
+[[nodes]]
+name = "top"
+position = [0, 0, 0]
+[[nodes]]
+name = "bottom"
+position = [0, 0, "-L"]
+[[beams]]
+name = "b"
+from = "top"
+to = "bottom"
+elements = "elements"
+section = "s"
+orientation = [1, 0, 0]
+[[joints]]
+name = "pivot"
+node = "top"
+body = "ground"
+type = "hinge"
+axis = [0, 1, 0]
+[[sensors]]
+name = "pivot"
+type = "hinge"
+joint = "pivot"
+[solver]
+t_end = 1.0
+dt = 1e-3
+"#
+    )
+}
+
+fn write(name: &str, text: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("latdyn-mechanisms-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn frequencies(v: &serde_json::Value) -> Vec<f64> {
+    v["frequencies_hz"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{v}"))
+        .iter()
+        .map(|f| f.as_f64().unwrap())
+        .collect()
+}
+
+/// A stiff beam hinged at its top swings as the compound pendulum: ω² = m g (L/2) /
+/// (m L²/3) = 3g / 2L. Tolerance 1e-4: the beam's flexibility lowers the swing by about
+/// (ω / ω_bending)² (2e-7 at EI = 1e4), its axial stretch and the mesh (8 elements) by
+/// less than 1e-5.
+#[test]
+fn a_beam_hinged_at_its_top_hangs_in_equilibrium_and_swings_as_the_compound_pendulum() {
+    let g = 9.81;
+    let p = write("hanging.toml", &hanging_beam(1e4, -g));
+    let path = p.to_str().unwrap();
+    let st = latdyn_json(&["statics", path, "--json"]);
+    assert_eq!(st["warnings"], serde_json::json!([]), "{st}");
+    // hanging straight down: the pivot angle stays at zero
+    let angle = st["sensors"]["pivot"][0].as_f64().unwrap();
+    assert!(angle.abs() < 1e-9, "{st}");
+    // (three modes: the stiff beam's tenth is a 2.4 kHz one the 8 elements do not resolve)
+    let v = latdyn_json(&["modes", path, "--count", "3", "--json"]);
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    let f = frequencies(&v)[0];
+    let want = (1.5 * g).sqrt() / (2.0 * std::f64::consts::PI);
+    assert!(rel(f, want) < 1e-4, "swing {f} Hz against {want} Hz");
+}
+
+/// The same beam with gravity pointing up stands inverted: statics finds that
+/// equilibrium and warns it unstable, `modes` reports the swing as a negative-stiffness
+/// mode whose growth rate is the hanging swing's ω (the same |ω²| = 3g / 2L).
+#[test]
+fn the_same_beam_standing_inverted_is_an_unstable_equilibrium_growing_at_the_swings_rate() {
+    let g = 9.81;
+    let p = write("inverted.toml", &hanging_beam(1e4, g));
+    let path = p.to_str().unwrap();
+    let st = latdyn_json(&["statics", path, "--json"]);
+    let w = st["warnings"].to_string();
+    assert!(w.contains("unstable"), "{st}");
+    let v = latdyn_json(&["modes", path, "--count", "3", "--json"]);
+    let f = frequencies(&v)[0];
+    let want = (1.5 * g).sqrt() / (2.0 * std::f64::consts::PI);
+    assert!(f < 0.0 && rel(-f, want) < 1e-4, "{f} Hz against −{want} Hz");
+}
+
+/// The shipped four-bar's parallelogram: the coupler (5 kg) translates on two cranks
+/// (1 kg each, rotary inertia 1e-4 kg·m each) of length 1 m. Hanging, it swings at
+/// ω² = (m_c + m) g / (L (m_c + 2m/3 + 2 ρI L)); standing (the shipped gravity) the
+/// same |ω²| is an instability. Tolerance 1e-4: flexibility (cranks' first bending at
+/// 222 Hz against a 0.51 Hz swing) and mesh well below it.
+#[test]
+fn a_parallelogram_four_bar_swings_hanging_and_is_unstable_standing_at_its_closed_form_rate() {
+    let shipped = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/models/fourbar.toml"
+    ))
+    .unwrap();
+    let g = 9.81;
+    let (mc, m, rho_i): (f64, f64, f64) = (5.0, 1.0, 1e-4);
+    let w2 = (mc + m) * g / (mc + 2.0 * m / 3.0 + 2.0 * rho_i);
+    let want = w2.sqrt() / (2.0 * std::f64::consts::PI);
+    assert!(shipped.contains("gravity = [0, -9.81, 0]"));
+    let hanging = write(
+        "fourbar_hanging.toml",
+        &shipped.replace("gravity = [0, -9.81, 0]", "gravity = [0, 9.81, 0]"),
+    );
+    let v = latdyn_json(&["modes", hanging.to_str().unwrap(), "--json"]);
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    let f = frequencies(&v)[0];
+    assert!(rel(f, want) < 1e-4, "hanging swing {f} Hz against {want} Hz");
+
+    let st = latdyn_json(&["statics", "models/fourbar.toml", "--json"]);
+    assert!(st["warnings"].to_string().contains("unstable"), "{st}");
+    let v = latdyn_json(&["modes", "models/fourbar.toml", "--json"]);
+    let f = frequencies(&v)[0];
+    assert!(f < 0.0 && rel(-f, want) < 1e-4, "standing: {f} Hz against −{want} Hz");
+}
+
+/// Where the loads do not hold the swing it stays free at the solution, and statics
+/// names it as before: the weightless four-bar with a couple on its cranks' tops (+1 N
+/// along one crank, −1 N along the other) stretches one crank and shortens the other,
+/// whose geometric stiffnesses along the swing cancel. (With no load at all the
+/// reference is an equilibrium, reported as such, as it always was.)
+#[test]
+fn a_mechanism_its_loads_do_not_hold_is_still_named_as_a_free_motion() {
+    let shipped = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/models/fourbar.toml"
+    ))
+    .unwrap();
+    let couple = "\n[[loads]]\nnode = \"b1\"\nforce = [0, 1, 0]\n\n[[loads]]\nnode = \"b2\"\nforce = [0, -1, 0]\n";
+    let p = write(
+        "fourbar_couple.toml",
+        &(shipped.replace("gravity = [0, -9.81, 0]", "gravity = [0, 0, 0]") + couple),
+    );
+    let out = latdyn(&["statics", p.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    // (the hinge angles share the swing equally; which are listed first is round-off)
+    assert!(err.contains("free motion") && err.contains("2.angle +1.00"), "{err}");
+}
