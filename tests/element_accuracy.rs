@@ -439,7 +439,10 @@ fn statics_of_every_shipped_scene_warns_nothing_at_its_shipped_settings() {
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         let w = v["warnings"].as_array().unwrap();
         if name == "fourbar.toml" {
-            assert!(w.len() == 1 && w[0].as_str().unwrap().contains("unstable"), "{v}");
+            assert!(
+                w.len() == 1 && w[0].as_str().unwrap().contains("unstable"),
+                "{v}"
+            );
             continue;
         }
         assert!(w.is_empty(), "{name}: {v}");

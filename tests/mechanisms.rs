@@ -119,11 +119,9 @@ fn the_same_beam_standing_inverted_is_an_unstable_equilibrium_growing_at_the_swi
 /// 222 Hz against a 0.51 Hz swing) and mesh well below it.
 #[test]
 fn a_parallelogram_four_bar_swings_hanging_and_is_unstable_standing_at_its_closed_form_rate() {
-    let shipped = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/models/fourbar.toml"
-    ))
-    .unwrap();
+    let shipped =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/models/fourbar.toml"))
+            .unwrap();
     let g = 9.81;
     let (mc, m, rho_i): (f64, f64, f64) = (5.0, 1.0, 1e-4);
     let w2 = (mc + m) * g / (mc + 2.0 * m / 3.0 + 2.0 * rho_i);
@@ -136,13 +134,19 @@ fn a_parallelogram_four_bar_swings_hanging_and_is_unstable_standing_at_its_close
     let v = latdyn_json(&["modes", hanging.to_str().unwrap(), "--json"]);
     assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
     let f = frequencies(&v)[0];
-    assert!(rel(f, want) < 1e-4, "hanging swing {f} Hz against {want} Hz");
+    assert!(
+        rel(f, want) < 1e-4,
+        "hanging swing {f} Hz against {want} Hz"
+    );
 
     let st = latdyn_json(&["statics", "models/fourbar.toml", "--json"]);
     assert!(st["warnings"].to_string().contains("unstable"), "{st}");
     let v = latdyn_json(&["modes", "models/fourbar.toml", "--json"]);
     let f = frequencies(&v)[0];
-    assert!(f < 0.0 && rel(-f, want) < 1e-4, "standing: {f} Hz against −{want} Hz");
+    assert!(
+        f < 0.0 && rel(-f, want) < 1e-4,
+        "standing: {f} Hz against −{want} Hz"
+    );
 }
 
 /// Where the loads do not hold the swing it stays free at the solution, and statics
@@ -152,11 +156,9 @@ fn a_parallelogram_four_bar_swings_hanging_and_is_unstable_standing_at_its_close
 /// reference is an equilibrium, reported as such, as it always was.)
 #[test]
 fn a_mechanism_its_loads_do_not_hold_is_still_named_as_a_free_motion() {
-    let shipped = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/models/fourbar.toml"
-    ))
-    .unwrap();
+    let shipped =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/models/fourbar.toml"))
+            .unwrap();
     let couple = "\n[[loads]]\nnode = \"b1\"\nforce = [0, 1, 0]\n\n[[loads]]\nnode = \"b2\"\nforce = [0, -1, 0]\n";
     let p = write(
         "fourbar_couple.toml",
@@ -166,5 +168,8 @@ fn a_mechanism_its_loads_do_not_hold_is_still_named_as_a_free_motion() {
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
     // (the hinge angles share the swing equally; which are listed first is round-off)
-    assert!(err.contains("free motion") && err.contains("2.angle +1.00"), "{err}");
+    assert!(
+        err.contains("free motion") && err.contains("2.angle +1.00"),
+        "{err}"
+    );
 }

@@ -144,3 +144,104 @@ fn a_steady_start_is_stretched_as_the_closed_form_and_stays_at_rest_in_the_rotat
         "the unstretched start should ring: {ringing}"
     );
 }
+
+/// A cantilever shaft clamped to a hub spinning about the shaft's own axis, bending
+/// stiffnesses EIy ≠ EIz, no rotary inertia: each mode pair decouples, and in the
+/// rotating frame its eigenvalues λ² (x ∝ e^{iλt}) solve
+/// (ω₁² − Ω² − λ²)(ω₂² − Ω² − λ²) = 4Ω²λ², ω₁,₂ the clamped-free frequencies of the two
+/// planes. Between ω₁ and ω₂ one root λ² is negative: the shaft diverges without
+/// oscillating. Until session 46 `modes` left that root out and warned nothing (a probe
+/// found it: 15.22, 33.03, 62.70 Hz listed, "stable"). Tolerance 1e-5: the 16 elements'
+/// error of ω₁,₂ (about 1e-7) and the rotating analysis's round-off.
+#[test]
+fn a_shaft_spinning_between_its_two_critical_speeds_is_reported_divergent() {
+    let text = |omega: f64| {
+        format!(
+            r#"[parameters]
+omega = {omega}
+[sections.main]
+EA = 1.0e6
+EIy = 100.0
+EIz = 300.0
+GJ = 80.0
+rhoA = 1.0
+rhoIy = 0.0
+rhoIz = 0.0
+[[nodes]]
+name = "root"
+position = [0, 0, 0]
+[[nodes]]
+name = "tip"
+position = [1, 0, 0]
+[[beams]]
+name = "shaft"
+from = "root"
+to = "tip"
+elements = 16
+section = "main"
+[[bodies]]
+name = "hub"
+position = [0, 0, 0]
+mass = 1.0
+inertia = [1, 1, 1]
+  [[bodies.dofs]]
+  type = "rotation"
+  axis = [1, 0, 0]
+  drive = "omega*t"
+[[joints]]
+name = "clamp"
+node = "root"
+body = "hub"
+type = "rigid"
+[[sensors]]
+name = "tip"
+type = "node"
+node = "tip"
+[solver]
+t_end = 1.0
+dt = 1e-3
+"#
+        )
+    };
+    let dir = std::env::temp_dir().join(format!("latdyn-shaft-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // clamped-free first bending: (1.87510407)² √(EI / ρA L⁴)
+    let beta2 = 1.875_104_068_711_961f64.powi(2);
+    let (w1, w2) = (beta2 * 100f64.sqrt(), beta2 * 300f64.sqrt());
+    let two_pi = 2.0 * std::f64::consts::PI;
+    for omega in [30.0f64, 45.0, 80.0] {
+        let p = dir.join(format!("shaft_{omega}.toml"));
+        std::fs::write(&p, text(omega)).unwrap();
+        let v = latdyn_json(&["modes", p.to_str().unwrap(), "--count", "2", "--json"]);
+        let f: Vec<f64> = v["frequencies_hz"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        let (a, b) = (w1 * w1 - omega * omega, w2 * w2 - omega * omega);
+        let sum = a + b + 4.0 * omega * omega;
+        let disc = (sum * sum - 4.0 * a * b).sqrt();
+        let (x1, x2) = (0.5 * (sum - disc), 0.5 * (sum + disc));
+        // a negative λ² is a growth rate √(−λ²), reported as −√(−λ²)/2π
+        let want = |x: f64| x.signum() * x.abs().sqrt() / two_pi;
+        let warned = v["warnings"].to_string();
+        eprintln!("Ω = {omega}: {f:?}, λ² = {x1}, {x2}");
+        assert!(
+            rel(f[0], want(x1)) < 1e-5,
+            "Ω = {omega}: {f:?} against {}",
+            want(x1)
+        );
+        assert!(
+            rel(f[1], want(x2)) < 1e-5,
+            "Ω = {omega}: {f:?} against {}",
+            want(x2)
+        );
+        if x1 < 0.0 {
+            assert!(warned.contains("unstable in mode 1 (divergence"), "{v}");
+            assert_eq!(v["damping_ratios"][0].as_f64(), Some(-1.0), "{v}");
+        } else {
+            assert!(!warned.contains("unstable"), "{v}");
+        }
+    }
+}

@@ -352,7 +352,11 @@ impl NewtonSystem {
                 let groups = self.lu.unit_groups();
                 let n = self.pattern.n();
                 let diag: Vec<usize> = (0..n)
-                    .map(|i| self.pattern.slot(i, i).expect("the pattern holds the diagonal"))
+                    .map(|i| {
+                        self.pattern
+                            .slot(i, i)
+                            .expect("the pattern holds the diagonal")
+                    })
                     .collect();
                 let mut group_max = vec![0.0f64; groups.iter().max().map_or(1, |g| g + 1)];
                 for (i, &k) in diag.iter().enumerate() {

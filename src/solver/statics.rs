@@ -321,7 +321,10 @@ pub fn solve_until(
         // the loads must hold what the reference's stiffness did not: a motion still
         // free at the solution leaves the equilibrium undetermined (a free body at rest,
         // a mechanism whose loads do no work along it), which is the error it was
-        if sys.evaluate(model, &asm, s, Coeffs::statics(1.0), true).is_err() {
+        if sys
+            .evaluate(model, &asm, s, Coeffs::statics(1.0), true)
+            .is_err()
+        {
             match free_motions(model, s, 1.0) {
                 Some(e) => return Err(e),
                 None if model.n_eq > MAX_DIAGNOSIS_DOFS => rep.warnings.push(
