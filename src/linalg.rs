@@ -589,6 +589,12 @@ impl SparseLuSymbolic {
             }
         }
         let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        // no stiffness at all (a body's free rotation at rest, no load): every direction
+        // is neutral; a relative raise of the diagonal would add nothing, and the
+        // factorization of zero would fail and read as a negative direction
+        if largest == 0.0 {
+            return Ok(Some(true));
+        }
         let skew = entries
             .iter()
             .map(|(&(i, j), v)| (v - entries.get(&(j, i)).copied().unwrap_or(0.0)).abs())

@@ -173,3 +173,24 @@ fn a_mechanism_its_loads_do_not_hold_is_still_named_as_a_free_motion() {
         "{err}"
     );
 }
+
+/// A body's own free rotation at rest with no load (the shipped pendulum without
+/// gravity) has no stiffness at all: a neutral equilibrium, not an unstable one. The
+/// tangent is exactly zero, and its definiteness test failed to factor it and warned
+/// "unstable" (a probe in session 46), while `modes` rightly reported a 0 Hz mode.
+#[test]
+fn a_free_body_rotation_at_rest_is_neutral_not_warned_unstable() {
+    let args = [
+        "models/pendulum.toml",
+        "--set",
+        "g=0",
+        "--set",
+        "theta0=0",
+        "--json",
+    ];
+    let st = latdyn_json(&[&["statics"][..], &args[..]].concat());
+    assert_eq!(st["warnings"], serde_json::json!([]), "{st}");
+    let v = latdyn_json(&[&["modes"][..], &args[..]].concat());
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    assert_eq!(v["frequencies_hz"], serde_json::json!([0.0]), "{v}");
+}
