@@ -312,6 +312,8 @@ struct TimeError {
     /// per sensor, per component: the component is an angle of a rotation vector (its
     /// difference is wrapped)
     angle: Vec<Vec<bool>>,
+    /// per sensor, per component: its unit (see [`TimeError::significant`])
+    unit: Vec<Vec<&'static str>>,
     /// the step's local error, coordinate and velocity parts (by equation, unfiltered),
     /// for the transport; the state moved by an error (scratch)
     e: Vec<f64>,
@@ -407,15 +409,26 @@ fn followed_body(model: &Model) -> Option<usize> {
     nodes_follow.then_some(fb)
 }
 
-/// Whether a component's range is large enough to divide by: below 1e-12 of the largest
-/// range of its sensor the component is round-off noise, and so is a rotation-vector
-/// component below `ANGLE_NOISE` (one rule for the cap and the reported estimate).
-fn significant_range(range: f64, sensor_range: f64, angle: bool) -> bool {
+/// Whether a component's range is large enough to divide by (one rule for the caps and
+/// the reported estimate). It is round-off noise below 1e-12 of the largest range of any
+/// component in the same unit (`unit_range`), below `VALUE_NOISE` of its own values'
+/// magnitude, and, for a rotation-vector component, below `ANGLE_NOISE`. Until session
+/// 46 the first rule looked only within the component's own sensor: a cantilever turned
+/// in space, whose transverse tip sensor reads 1.4e-15 m of round-off where the truth is
+/// zero, had that sensor warned at 200 %, and its global cap (the worst sensor's
+/// deviation over its range) scaled the whole transported error down with it, so the
+/// real sensor beside it read 5.9e-5 for a true 1.9 % (a probe).
+fn significant_range(range: f64, unit_range: f64, magnitude: f64, angle: bool) -> bool {
     range.is_finite()
         && range > 0.0
-        && range > 1e-12 * sensor_range
+        && range > 1e-12 * unit_range
+        && range > VALUE_NOISE * magnitude
         && (!angle || range > ANGLE_NOISE)
 }
+
+/// A component whose values change by less than this share of their magnitude moves
+/// within their round-off (64 ε): a position 1e7 m from the origin is resolved to 2e-9 m.
+const VALUE_NOISE: f64 = 64.0 * f64::EPSILON;
 
 /// A rotation-vector component whose range stays below this [rad] is round-off: the
 /// shipped four-bar's coupler translates without turning, and its rz drifted by 9e-14
@@ -448,6 +461,11 @@ impl TimeError {
                 .sensors
                 .iter()
                 .map(|sn| sensors::angle_components(&sn.kind))
+                .collect(),
+            unit: model
+                .sensors
+                .iter()
+                .map(|sn| sensors::units(&sn.kind))
                 .collect(),
             e: vec![0.0; n_eq],
             ev: vec![0.0; n_eq],
@@ -487,17 +505,64 @@ impl TimeError {
     }
 
     /// Relative scale of a component: its range so far, or a floor where it has not
-    /// moved (below 1e-12 of the largest range of the sensor the component is noise).
+    /// moved (see [`significant_range`]).
     fn scale(&self, k: usize, c: usize) -> f64 {
         let range = self.hi[k][c] - self.lo[k][c];
-        let sensor_range = (0..self.hi[k].len())
-            .map(|j| self.hi[k][j] - self.lo[k][j])
-            .fold(0.0f64, f64::max);
-        if significant_range(range, sensor_range, self.angle[k][c]) {
+        if self.significant(k, c, None, &self.unit_ranges(None)) {
             range
         } else {
             f64::INFINITY
         }
+    }
+
+    /// Lowest and highest value of component (k, c) so far, with the sample `ys` where
+    /// it is given.
+    fn bounds(&self, k: usize, c: usize, ys: Option<&[Vec<f64>]>) -> (f64, f64) {
+        match ys {
+            Some(ys) => (self.lo[k][c].min(ys[k][c]), self.hi[k][c].max(ys[k][c])),
+            None => (self.lo[k][c], self.hi[k][c]),
+        }
+    }
+
+    /// The largest range so far (with `ys`) of the estimable sensors' components, per
+    /// unit.
+    fn unit_ranges(&self, ys: Option<&[Vec<f64>]>) -> Vec<(&'static str, f64)> {
+        let mut out: Vec<(&'static str, f64)> = Vec::new();
+        for (j, units) in self.unit.iter().enumerate() {
+            if !self.estimable[j] {
+                continue;
+            }
+            for (i, u) in units.iter().enumerate() {
+                let (lo, hi) = self.bounds(j, i, ys);
+                match out.iter_mut().find(|(v, _)| v == u) {
+                    Some((_, r)) => *r = r.max(hi - lo),
+                    None => out.push((u, hi - lo)),
+                }
+            }
+        }
+        out
+    }
+
+    /// [`significant_range`] for component (k, c), its range so far (with `ys`), against
+    /// the [`Self::unit_ranges`] of the same `ys`.
+    fn significant(
+        &self,
+        k: usize,
+        c: usize,
+        ys: Option<&[Vec<f64>]>,
+        units: &[(&'static str, f64)],
+    ) -> bool {
+        let unit_range = units
+            .iter()
+            .find(|(u, _)| *u == self.unit[k][c])
+            .map_or(0.0, |(_, r)| *r);
+        let (lo, hi) = self.bounds(k, c, ys);
+        significant_range(
+            hi - lo,
+            unit_range,
+            lo.abs().max(hi.abs()),
+            self.angle[k][c],
+        )
     }
 
     /// Per sensor, the accumulated error relative to the range (NaN: not estimable).
@@ -1448,9 +1513,9 @@ impl<'m> Integrator<'m> {
                 let drivers = self.te.drivers && self.moved_reactions().await;
                 self.sensor_deviation(ys, &mut dev, drivers);
                 let te = &mut self.te;
+                let units = te.unit_ranges(Some(ys));
                 for (k, (y, dy)) in ys.iter().zip(&dev).enumerate() {
                     let range = |c: usize| te.hi[k][c].max(y[c]) - te.lo[k][c].min(y[c]);
-                    let sensor_range = (0..y.len()).map(range).fold(0.0f64, f64::max);
                     for (c, d) in dy.iter().enumerate() {
                         if !d.is_finite() {
                             continue;
@@ -1458,9 +1523,7 @@ impl<'m> Integrator<'m> {
                         if which == 0 {
                             let m = &mut te.band_max[band][k][c];
                             *m = m.max(*d);
-                        } else if significant_range(range(c), sensor_range, te.angle[k][c])
-                            && *d > 1e-12 * range(c)
-                        {
+                        } else if te.significant(k, c, Some(ys), &units) && *d > 1e-12 * range(c) {
                             worst = worst.max(d / (BAND_CAP * te.band_max[band][k][c]));
                         }
                     }
@@ -1562,12 +1625,12 @@ impl<'m> Integrator<'m> {
     /// meaning anything but "as large as the signal".
     fn cap_global_error(&mut self, ys: &[Vec<f64>], dys: &mut [Vec<f64>]) {
         let mut worst = 0.0f64;
+        let units = self.te.unit_ranges(Some(ys));
         for (k, (y, dy)) in ys.iter().zip(dys.iter()).enumerate() {
             let te = &self.te;
             let range = |c: usize| te.hi[k][c].max(y[c]) - te.lo[k][c].min(y[c]);
-            let sensor_range = (0..y.len()).map(range).fold(0.0f64, f64::max);
             for (c, d) in dy.iter().enumerate() {
-                if significant_range(range(c), sensor_range, te.angle[k][c]) && d.is_finite() {
+                if te.significant(k, c, Some(ys), &units) && d.is_finite() {
                     worst = worst.max(d / range(c));
                 }
             }
