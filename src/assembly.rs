@@ -566,7 +566,7 @@ fn deformation_rate(y1: Vec3, y2: Vec3, v12: &Vec12) -> Vec12 {
     let (v1, w1, v2, w2) = (part(0), part(3), part(6), part(9));
     let d = sub(y2, y1);
     let l2 = dot(d, d);
-    if !(l2 > 0.0) {
+    if l2.is_nan() || l2 <= 0.0 {
         return *v12;
     }
     let turn = scale(cross(d, sub(v2, v1)), 1.0 / l2);

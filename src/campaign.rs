@@ -255,6 +255,16 @@ impl CampaignFile {
             )));
         }
         let definition = scalar_text(layout::DEFINITION)?;
+        // the identity every merge and resume relies on: a hash that is not the stored
+        // definition's was edited or damaged, and a merge carried it on unchecked
+        let stored = hex(&Sha256::digest(definition.as_bytes()));
+        if stored != hash {
+            return Err(err(format!(
+                "its campaign_hash ({}) is not the hash of its stored campaign definition \
+                 ({stored}): the file was edited or damaged; rerun or restore it",
+                crate::model::elide_long_words(&hash)
+            )));
+        }
         let varied = strings(layout::VARIED)?;
         let table = f64s(layout::VARIANTS)?;
         let n_total = ds(layout::VARIANTS)?.shape().first().copied().unwrap_or(0);
@@ -269,7 +279,11 @@ impl CampaignFile {
             .collect();
         let parameter_names = strings(layout::PARAMETER_NAMES)?;
         let values = f64s(layout::PARAMETER_VALUES)?;
-        let global_index: Vec<usize> = i64s(layout::GLOBAL_INDEX)?
+        let raw_index = i64s(layout::GLOBAL_INDEX)?;
+        if let Some(g) = raw_index.iter().find(|&&g| g < 0) {
+            return Err(err(format!("global index {g} is negative")));
+        }
+        let global_index: Vec<usize> = raw_index
             .into_iter()
             .map(|g| usize::try_from(g).unwrap_or(usize::MAX))
             .collect();

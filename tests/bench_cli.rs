@@ -71,3 +71,48 @@ fn bench_statics_ladders_write_the_report_and_converge_at_second_order() {
     assert!(bad.stdout.is_empty());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The bench's three files follow the output policy of `run`, `sweep` and `plot`: a
+/// `results.md` that is a symlink (here to a model file) or a FIFO is refused before
+/// the suite runs, exit 2, and the symlink's target is left as it was. Until session 46
+/// the bench wrote through the symlink (replacing the model with its report) and hung
+/// on the FIFO.
+#[test]
+fn bench_refuses_a_symlinked_or_special_results_file_before_running() {
+    use std::os::unix::fs::symlink;
+    let dir = std::env::temp_dir().join(format!("latdyn-bench-out-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("linked")).unwrap();
+    let victim = dir.join("victim.toml");
+    std::fs::write(&victim, "# a model\n").unwrap();
+    symlink(&victim, dir.join("linked/results.md")).unwrap();
+    let args = |out: &str| {
+        vec![
+            "bench".to_string(),
+            "--quick".into(),
+            "--only".into(),
+            "rollup".into(),
+            "--out".into(),
+            dir.join(out).to_string_lossy().into_owned(),
+        ]
+    };
+    let a = args("linked");
+    let out = latdyn(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("symbolic link") && !e.contains("Roll-up"), "{e}");
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "# a model\n");
+
+    std::fs::create_dir_all(dir.join("fifo")).unwrap();
+    let fifo = dir.join("fifo/results.json");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    let a = args("fifo");
+    let out = latdyn(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("FIFO"),
+        "{out:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -264,3 +264,68 @@ fn merge_refuses_a_shard_whose_parameter_table_was_edited_with_exit_2() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A shard whose root `campaign_hash` was edited is refused, exit 2, naming the file:
+/// the hash must be that of the stored definition (a merge carried `deadbeef` on into
+/// its output, and a resume of that then said the definition changed naming one id
+/// twice; a probe, session 46).
+#[test]
+fn merge_refuses_a_shard_whose_campaign_hash_is_not_its_definitions() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("hash");
+    shards(&dir);
+    h5py(
+        &dir,
+        "import h5py, shutil\nshutil.copy('sh2.h5', 'bad.h5')\nwith h5py.File('bad.h5', 'r+') as f:\n    f.attrs['campaign_hash'] = 'deadbeef'\n",
+    );
+    let out = run(&dir, &["merge", "sh1.h5", "bad.h5", "-o", "m.h5", "--json"]);
+    refused(&out, "hash", &["bad.h5", "campaign_hash", "not the hash"]);
+    assert!(!dir.join("m.h5").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// h5py stores a Python str as a variable-length string; a shard whose definition,
+/// model source and model path were rewritten so (same text) merges into a file whose
+/// texts are those texts. They were read as their raw heap-reference bytes: the merged
+/// definition was garbage with exit 0, the model source "did not compile", a chart's
+/// title held NUL bytes (a probe, session 46).
+#[test]
+fn merge_reads_texts_that_h5py_rewrote_as_variable_length_strings() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("vlen");
+    shards(&dir);
+    h5py(
+        &dir,
+        "import h5py, shutil\nshutil.copy('sh2.h5', 'vlen.h5')\nwith h5py.File('vlen.h5', 'r+') as f:\n    for n in ['campaign/definition', 'model/source', 'model/path']:\n        t = f[n][()]\n        t = t.decode() if isinstance(t, bytes) else str(t)\n        del f[n]\n        f[n] = t\n",
+    );
+    let out = run(&dir, &["merge", "sh1.h5", "vlen.h5", "-o", "m.h5"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    h5py(
+        &dir,
+        "import h5py\nwith h5py.File('m.h5') as m, h5py.File('sh1.h5') as a:\n    for n in ['campaign/definition', 'model/source', 'model/path']:\n        x, y = m[n][()], a[n][()]\n        x = x.decode() if isinstance(x, bytes) else x\n        y = y.decode() if isinstance(y, bytes) else y\n        assert x == y, (n, x[:80], y[:80])\n",
+    );
+    let png = run(
+        &dir,
+        &["plot", "vlen.h5", "--sensor", "angle", "-o", "c.svg"],
+    );
+    assert_eq!(
+        png.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&png.stderr)
+    );
+    let svg = std::fs::read_to_string(dir.join("c.svg")).unwrap();
+    assert!(!svg.contains('\0'), "a NUL in the chart");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1117,3 +1117,35 @@ fn sigterm_mid_merge_writes_nothing_and_leaves_no_temporary_or_lock() {
     assert!(!dir.join("m.h5.lock").exists(), "lock file removed");
     no_temporaries(&dir);
 }
+
+/// A signal while `run` compiles its model (200 000 elements: about 0.5 s) ends it
+/// as interrupted, exit 4, with its JSON and file saying so: the handler is installed
+/// before the model is loaded. Until session 46 it was installed after, and such a
+/// signal killed the process with no message, no JSON and a lock file left (a probe).
+/// The signal is sent 0.2 s after the start, well inside the compilation; sent later it
+/// would stop the run before its first steps, which must end the same way.
+#[test]
+fn a_signal_while_run_compiles_its_model_ends_it_interrupted_with_exit_4() {
+    let dir = scratch("signal_in_run_compile");
+    let path = dir.join("r.h5");
+    let child = spawn(latdyn(&[
+        "run",
+        "models/cantilever.toml",
+        "--set",
+        "elements=200000",
+        "--json",
+        "-o",
+        s(&path),
+    ]));
+    std::thread::sleep(Duration::from_millis(200));
+    signal(&child, "TERM");
+    let out = finish(child, 120);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(4), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("no JSON summary ({e}); stderr: {err}"));
+    assert_eq!(v["status"], "interrupted", "{v}");
+    assert_eq!(rust_summary(&path).0, "interrupted");
+    assert!(!dir.join("r.h5.lock").exists(), "lock file removed");
+    no_temporaries(&dir);
+}

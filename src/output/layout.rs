@@ -297,8 +297,24 @@ impl Reader {
     /// A scalar string dataset (`/model/source`, `/campaign/definition`), NUL padding
     /// removed.
     pub fn scalar_text(&self, name: &str) -> Result<String, String> {
-        self.sized(name)?
-            .read_raw_bytes()
+        let d = self.sized(name)?;
+        // a file rewritten by h5py stores a Python str as a variable-length string, whose
+        // raw bytes are a heap reference: read as text, that was garbage (a merged
+        // definition of reference bytes, "the stored model does not compile", NUL bytes
+        // in a chart's title; a probe, session 46)
+        if let Ok(DatatypeMessage::VarLenString { .. }) = d.datatype() {
+            let mut all = d
+                .read_strings_lossy()
+                .map_err(|e| format!("reading /{name}: {e}"))?;
+            if all.len() != 1 {
+                return Err(format!(
+                    "/{name} holds {} strings where one text is expected",
+                    all.len()
+                ));
+            }
+            return Ok(all.remove(0));
+        }
+        d.read_raw_bytes()
             .map(|b| {
                 String::from_utf8_lossy(&b)
                     .trim_end_matches('\0')

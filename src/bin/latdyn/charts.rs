@@ -45,29 +45,56 @@ pub(crate) fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         },
         scenes: args.scenes.clone(),
     };
-    std::fs::create_dir_all(&args.out).map_err(|e| {
-        anyhow!(
-            "{}: --out: cannot create the directory: {e}",
-            args.out.display()
-        )
-    })?;
+    match std::fs::symlink_metadata(&args.out) {
+        Ok(m) if !m.is_dir() => anyhow::bail!(
+            "{}: --out: not a directory ({}); give a directory for the results",
+            args.out.display(),
+            if m.file_type().is_symlink() {
+                "a symbolic link"
+            } else {
+                "it exists and is something else"
+            }
+        ),
+        _ => std::fs::create_dir_all(&args.out).map_err(|e| {
+            anyhow!(
+                "{}: --out: cannot create the directory: {e}",
+                args.out.display()
+            )
+        })?,
+    }
+    // the three files follow the output policy of run, sweep and plot (no symlinks or
+    // special files, locked, shown writable before the suite runs, replaced atomically):
+    // a results.md symlinked to a model file was written through, a FIFO hung the
+    // bench, a read-only directory failed after the whole suite (a probe, session 46)
+    let claim = |name: &str| claim_output(&args.out.join(name), &[]);
+    let (md_target, json_target, png_target) = (
+        claim("results.md")?,
+        claim("results.json")?,
+        claim("work_precision.png")?,
+    );
     let report = bench::run_suite(&opts, &|line| eprintln!("{line}"))?;
     let command = std::env::args_os()
         .skip(1)
         .fold("latdyn".to_string(), |a, b| a + " " + &b.to_string_lossy());
-    let svg = args.out.join("work_precision.png");
     let has_runs = report.problems.iter().any(|p| !p.runs.is_empty());
     if has_runs {
-        bench::plot(&report, &svg)?;
+        let staging = Staging(staging_path(png_target.path()));
+        bench::plot(&report, &staging.0)?;
+        let bytes = std::fs::read(&staging.0)
+            .map_err(|e| anyhow!("{}: cannot read the drawn chart: {e}", staging.0.display()))?;
+        png_target
+            .replace_with(&bytes)
+            .map_err(|e| fail(EXIT_OUTPUT, e.to_string()))?;
     }
     let md = bench::markdown(&report, &command, has_runs.then_some("work_precision.png"));
-    let write = |name: &str, text: &str| {
-        let p = args.out.join(name);
-        std::fs::write(&p, text).map_err(|e| anyhow!("{}: cannot write: {e}", p.display()))
+    let write = |target: &latdyn::output::OutputTarget, text: &str| {
+        target
+            .replace_with(text.as_bytes())
+            .map_err(|e| fail(EXIT_OUTPUT, e.to_string()))
     };
-    write("results.md", &md)?;
+    write(&md_target, &md)?;
     let json = serde_json::to_string_pretty(&report)?;
-    write("results.json", &json)?;
+    write(&json_target, &json)?;
     eprintln!(
         "wrote {} (and results.json{})",
         args.out.join("results.md").display(),

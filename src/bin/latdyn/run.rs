@@ -137,6 +137,10 @@ pub(crate) fn check_accuracy(target: f64, m: &latdyn::model::Model) -> anyhow::R
 pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     use latdyn::output::{VariantState, VariantStatus};
     use std::sync::atomic::Ordering;
+    // installed before the model is compiled (a large one takes seconds): a signal then
+    // ends the run before its first step, exit 4 with its file and JSON marked
+    // interrupted, where it killed the process with nothing said (a probe, session 46)
+    let stop = stop_flag();
     let mut m = args.model.load()?;
     if let Some(a) = args.accuracy {
         check_accuracy(a, &m)?;
@@ -152,7 +156,6 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(t) => Some(RunSink::open(&m, t, &stage).map_err(|e| anyhow!("{e}"))?),
         None => None,
     };
-    let stop = stop_flag();
     let mut out_err: Option<latdyn::output::OutputError> = None;
     let mut n_samples = 0usize;
     let mut last_flush = std::time::Instant::now();
