@@ -314,6 +314,9 @@ struct TimeError {
     angle: Vec<Vec<bool>>,
     /// per sensor, per component: its unit (see [`TimeError::significant`])
     unit: Vec<Vec<&'static str>>,
+    /// the share of the largest range in a unit below which a component is round-off:
+    /// `UNIT_NOISE`, or the element stage's unit round-off where that is larger (f32)
+    resolution: f64,
     /// the step's local error, coordinate and velocity parts (by equation, unfiltered),
     /// for the transport; the state moved by an error (scratch)
     e: Vec<f64>,
@@ -410,21 +413,35 @@ fn followed_body(model: &Model) -> Option<usize> {
 }
 
 /// Whether a component's range is large enough to divide by (one rule for the caps and
-/// the reported estimate). It is round-off noise below 1e-12 of the largest range of any
-/// component in the same unit (`unit_range`), below `VALUE_NOISE` of its own values'
+/// the reported estimate). It is round-off noise below `resolution` (`UNIT_NOISE`, or
+/// the element stage's unit round-off on f32) of the largest range of any component in
+/// the same unit (`unit_range`), below `VALUE_NOISE` of its own values'
 /// magnitude, and, for a rotation-vector component, below `ANGLE_NOISE`. Until session
 /// 46 the first rule looked only within the component's own sensor: a cantilever turned
 /// in space, whose transverse tip sensor reads 1.4e-15 m of round-off where the truth is
 /// zero, had that sensor warned at 200 %, and its global cap (the worst sensor's
 /// deviation over its range) scaled the whole transported error down with it, so the
 /// real sensor beside it read 5.9e-5 for a true 1.9 % (a probe).
-fn significant_range(range: f64, unit_range: f64, magnitude: f64, angle: bool) -> bool {
+fn significant_range(
+    range: f64,
+    unit_range: f64,
+    resolution: f64,
+    magnitude: f64,
+    angle: bool,
+) -> bool {
     range.is_finite()
         && range > 0.0
-        && range > 1e-12 * unit_range
+        && range > resolution * unit_range
         && range > VALUE_NOISE * magnitude
         && (!angle || range > ANGLE_NOISE)
 }
+
+/// The share of the largest range of a unit below which a component's range is
+/// round-off (f64 element stage). On f32 the element stage's unit round-off, 6e-8, is
+/// used instead: the four-bar's coupler, which translates without turning, read
+/// 1.6e-12 rad of f32 noise in its rz against 0.2 rad of hinge angles, was estimated at
+/// 200 % and sent `--accuracy` to 16 times the steps for nothing (a probe, session 46).
+const UNIT_NOISE: f64 = 1e-12;
 
 /// A component whose values change by less than this share of their magnitude moves
 /// within their round-off (64 ε): a position 1e7 m from the origin is resolved to 2e-9 m.
@@ -437,7 +454,7 @@ const VALUE_NOISE: f64 = 64.0 * f64::EPSILON;
 const ANGLE_NOISE: f64 = 1e-12;
 
 impl TimeError {
-    fn new(model: &Model, s: &State, n_eq: usize) -> TimeError {
+    fn new(model: &Model, s: &State, n_eq: usize, unit_roundoff: f64) -> TimeError {
         let comps: Vec<usize> = model
             .sensors
             .iter()
@@ -467,6 +484,7 @@ impl TimeError {
                 .iter()
                 .map(|sn| sensors::units(&sn.kind))
                 .collect(),
+            resolution: UNIT_NOISE.max(unit_roundoff),
             e: vec![0.0; n_eq],
             ev: vec![0.0; n_eq],
             moved: s.clone(),
@@ -560,6 +578,7 @@ impl TimeError {
         significant_range(
             hi - lo,
             unit_range,
+            self.resolution,
             lo.abs().max(hi.abs()),
             self.angle[k][c],
         )
@@ -943,7 +962,7 @@ impl<'m> Integrator<'m> {
             prev_h: 0.0,
             coord_scale: super::statics::coord_scale(model),
             trend_smooth: false,
-            te: TimeError::new(model, &s, model.n_eq),
+            te: TimeError::new(model, &s, model.n_eq, asm.eval.unit_roundoff()),
             bands: BandScratch::default(),
             lock_retries: 0,
             factor_failure: None,
