@@ -349,35 +349,69 @@ impl NewtonSystem {
         let factored = match plain {
             Ok(()) => Some(true),
             Err(LinalgError::Singular { .. }) => {
-                let groups = self.lu.unit_groups();
-                let n = self.pattern.n();
-                let diag: Vec<usize> = (0..n)
-                    .map(|i| {
-                        self.pattern
-                            .slot(i, i)
-                            .expect("the pattern holds the diagonal")
-                    })
-                    .collect();
-                let mut group_max = vec![0.0f64; groups.iter().max().map_or(1, |g| g + 1)];
-                for (i, &k) in diag.iter().enumerate() {
-                    let g = groups.get(i).copied().unwrap_or(0);
-                    group_max[g] = group_max[g].max(self.values[k].abs());
-                }
-                let mut shifted = self.values.clone();
-                for (i, &k) in diag.iter().enumerate() {
-                    let g = groups.get(i).copied().unwrap_or(0);
-                    let a = self.values[k].abs();
-                    let size = if a > 0.0 { a } else { group_max[g] };
-                    // added with the entry's own sign: a negative pivot (a compressed
-                    // mechanism) is not pushed through zero
-                    shifted[k] += shift * size * if self.values[k] < 0.0 { -1.0 } else { 1.0 };
-                }
+                let shifted = self.shifted_values(shift);
                 self.lu.factor(&shifted).ok().map(|_| false)
             }
             Err(_) => None,
         };
         self.times.factorization_s += t0.elapsed().as_secs_f64();
         (Some(info), factored)
+    }
+
+    /// The assembled values with `shift` times each diagonal entry's magnitude added to
+    /// it (the largest of its unit group where the entry is zero), with the entry's own
+    /// sign: a negative pivot (a compressed mechanism) is not pushed through zero.
+    fn shifted_values(&self, shift: f64) -> Vec<f64> {
+        let groups = self.lu.unit_groups();
+        let n = self.pattern.n();
+        let diag: Vec<usize> = (0..n)
+            .map(|i| {
+                self.pattern
+                    .slot(i, i)
+                    .expect("the pattern holds the diagonal")
+            })
+            .collect();
+        let mut group_max = vec![0.0f64; groups.iter().max().map_or(1, |g| g + 1)];
+        for (i, &k) in diag.iter().enumerate() {
+            let g = groups.get(i).copied().unwrap_or(0);
+            group_max[g] = group_max[g].max(self.values[k].abs());
+        }
+        let mut shifted = self.values.clone();
+        for (i, &k) in diag.iter().enumerate() {
+            let g = groups.get(i).copied().unwrap_or(0);
+            let a = self.values[k].abs();
+            let size = if a > 0.0 { a } else { group_max[g] };
+            shifted[k] += shift * size * if self.values[k] < 0.0 { -1.0 } else { 1.0 };
+        }
+        shifted
+    }
+
+    /// After [`NewtonSystem::evaluate_shifting`] factored the shifted Jacobian J + μD:
+    /// the Newton correction without its part along J's free motions. The shifted solve
+    /// gives that part as c/μ (and the rest to O(μ)), so the corrections for μ and 2μ
+    /// combine as 2 Δ(2μ) − Δ(μ), which cancels it and keeps the rest (Richardson in μ).
+    /// A load that does work along a free motion at the reference (a hanging beam pushed
+    /// sideways, a pendulum tilted from its hanging state) would otherwise move it by
+    /// c/μ; without that part, the step only strains the structure, and the tangent at
+    /// the strained state has the axial forces that give the motion its stiffness.
+    /// Leaves the factor of J + 2μD.
+    pub fn solve_neg_residual_without_free(
+        &mut self,
+        dx: &mut [f64],
+        shift: f64,
+    ) -> Result<(), LinalgError> {
+        self.solve_neg_residual(dx)?;
+        let t0 = Instant::now();
+        let shifted = self.shifted_values(2.0 * shift);
+        let r = self.lu.factor(&shifted);
+        self.times.factorization_s += t0.elapsed().as_secs_f64();
+        r?;
+        let mut d2 = vec![0.0; dx.len()];
+        self.solve_neg_residual(&mut d2)?;
+        for (d, e) in dx.iter_mut().zip(&d2) {
+            *d = 2.0 * e - *d;
+        }
+        Ok(())
     }
 
     /// Nonzeros of the Jacobian pattern and of its LU factor (L + U) for the values last

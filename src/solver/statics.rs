@@ -85,6 +85,7 @@ pub fn newton(
     let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
     // first (tangent) prediction and the distance Newton travels after it
     let (mut first, mut travel) = (0.0f64, 0.0f64);
+    let mut predicted = false;
     // coordinate change of the last correction, and the corrections above the
     // coordinates' round-off (the iterations reported: an unloaded curved mesh takes one
     // correction at round-off and is still the reference configuration)
@@ -95,7 +96,9 @@ pub fn newton(
     let roundoff = Convergence::ROUNDOFF_CORRECTION * asm.eval.unit_roundoff() * coord_scale(model);
     // whether the last factor was of the shifted tangent (see `SINGULAR_SHIFT`)
     let mut shifted_factor = false;
-    for it in 0..model.solver.max_iter.max(1) {
+    // whether the last correction was such a step
+    let mut last_shifted = false;
+    for _ in 0..model.solver.max_iter.max(1) {
         joint::update_kinematics(model, s);
         let (info, factored) = match shift.as_deref_mut() {
             Some(_) => {
@@ -122,19 +125,29 @@ pub fn newton(
         // first: on a stiff model (EI = 1e14 under 1 N) the whole deflection is a few
         // ulps of the coordinates, and returning before it reported the unloaded state,
         // reactions 0
-        let stalled = conv.stalled_at_roundoff(last_correction, coord_scale(model));
+        // (not after a step without the free motions: its residual along them is what
+        // that step leaves, not round-off; a free beam under a tip force "converged"
+        // at tiny loads that way)
+        let stalled =
+            !last_shifted && conv.stalled_at_roundoff(last_correction, coord_scale(model));
         if (conv.converged(res, scale)
             && (!factored || settled(model, sys, &mut dx, first + travel, roundoff, &mut pending)))
             || stalled
         {
             return Ok(crate::assembly::deformation_in_range(model, s).then_some(counted));
         }
-        if !factored || sys.solve_neg_residual(&mut dx).is_err() {
+        let solved = if shifted_factor {
+            sys.solve_neg_residual_without_free(&mut dx, SINGULAR_SHIFT)
+        } else {
+            sys.solve_neg_residual(&mut dx)
+        };
+        if !factored || solved.is_err() {
             return Ok(None);
         }
         crate::assembly::limit_rotation_step(model, &mut dx, MAX_NEWTON_ANGLE);
         let step = norm_inf(&dx);
         last_correction = step;
+        last_shifted = shifted_factor;
         if step > roundoff {
             counted += 1;
             // a correction the tangent itself could not give (a zero-load mechanism at
@@ -143,8 +156,13 @@ pub fn newton(
                 *used |= shifted_factor;
             }
         }
-        if it == 0 {
+        if shifted_factor {
+            // a step without the free motions is no tangent prediction of the path: the
+            // first one the tangent itself gives is (a pendulum tilted from hanging
+            // swings back by its whole tilt there)
+        } else if !predicted {
             first = step;
+            predicted = true;
         } else {
             travel += step;
             // Newton has gone far beyond the tangent prediction: past a limit point it
