@@ -19,7 +19,7 @@
 //! [`NOISE_FACTOR`] above the spectrum's median (the noise floor). Warnings, each naming
 //! the likely cause, start with `first_bending_hz: <kind>:` (kinds: `not excited`,
 //! `ambiguous spectrum`, `disagrees with the eigenvalue`, `no modal prior`, `short record`,
-//! `aliased`):
+//! `aliased`, `fixed-frame sensor`):
 //! a number that differs from the eigenvalue by more than [`AGREE`] never goes out without
 //! one.
 //!
@@ -118,6 +118,8 @@ pub fn first_bending(model: &Model, sensor: (usize, usize), x: &[f64], dt: f64) 
         }
         return out;
     };
+    out.warnings
+        .extend(fixed_frame_warning(model, sensor, spin.omega));
     let rm = match rotating_modes_with_shapes(model, spin, SHAPES) {
         Ok(rm) if !rm.steady_converged => {
             largest(&mut out);
@@ -247,6 +249,48 @@ pub fn first_bending(model: &Model, sensor: (usize, usize), x: &[f64], dt: f64) 
         ));
     }
     out
+}
+
+/// A sensor component measured in the fixed (inertial) frame across the spin axis sees a
+/// rotating-frame mode at f as lines at f ± Ω/2π, not at f: the rotating-frame prior then
+/// picks whatever line lies near f (the shipped blade's `tip.x` at Ω = 10 rad/s read
+/// 4.7399 Hz for the 4.7321 Hz lag mode, a line that stays there with a 30 s record,
+/// while the mode shows at 3.147 and 6.331 Hz; a probe, session 46). Warned, whatever
+/// the value: a section, a hinge angle or a body-frame displacement turns with the rotor,
+/// and a fixed-frame component along the axis does not mix.
+fn fixed_frame_warning(
+    model: &Model,
+    (k, c): (usize, usize),
+    omega: crate::math::Vec3,
+) -> Option<String> {
+    use crate::model::SensorKind as S;
+    let unit = |i: usize| {
+        let mut e = [0.0; 3];
+        e[i % 3] = 1.0;
+        e
+    };
+    let sensor = &model.sensors[k];
+    let dir = match &sensor.kind {
+        S::NodePosition { .. } | S::NodeDisplacement { .. } | S::BodyPose { .. } => unit(c),
+        S::NodeDirection { dir, .. } => *dir,
+        _ => return None,
+    };
+    let (nd, nw) = (crate::math::norm(dir), crate::math::norm(omega));
+    if nd == 0.0 || nw == 0.0 {
+        return None;
+    }
+    let along = crate::math::dot(dir, omega).abs() / (nd * nw);
+    (along < 1.0 - 1e-9).then(|| {
+        format!(
+            "first_bending_hz: fixed-frame sensor: `{}` component {c} is measured in the \
+             fixed frame across the spin axis, where a rotating-frame mode at f shows as \
+             lines at f ± Ω/2π = f ± {:.5} Hz, so the line reported near the rotating-frame \
+             eigenvalue may be another; use a sensor that turns with the rotor (a section, \
+             a hinge angle, a body-frame displacement) or the component along the axis",
+            sensor.name,
+            nw / (2.0 * std::f64::consts::PI)
+        )
+    })
 }
 
 /// A mode must move the sensor by at least this share of the largest response among the
