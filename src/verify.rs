@@ -81,6 +81,7 @@ pub fn rel_diff(
     refined: &SensorSummary,
     units: &[&str],
     shared: bool,
+    model_magnitudes: &[(&str, f64)],
 ) -> Vec<f64> {
     let nc = base.min.len();
     let mag: Vec<f64> = (0..nc)
@@ -109,6 +110,14 @@ pub fn rel_diff(
                 .fold((0.0f64, 0.0f64), |(m, r), o| {
                     (m.max(mag[o]), r.max(base.max[o] - base.min[o]))
                 });
+            // and over every sensor of the model in this unit (`model_magnitudes`): a
+            // parallelogram coupler's rz, round-off about 0 in its own sensor whose other
+            // angles are 0 too, read 175 % beside hinge angles of 0.5 rad (a probe,
+            // session 46)
+            let same_unit = model_magnitudes
+                .iter()
+                .filter(|(u, _)| Some(u) == units.get(c))
+                .fold(same_unit, |m, (_, x)| m.max(*x));
             let shared_range = if shared { shared_range } else { 0.0 };
             let scale = (base.max[c] - base.min[c])
                 .max(REST_FRACTION * same_unit)
@@ -368,13 +377,31 @@ fn check_one(
         None => {}
     }
     let refined = crate::ensemble::summarize(&r, &hist);
+    // the largest magnitude in each unit over the model's sensors (energies aside), base
+    // and refined
+    let mut magnitudes: Vec<(&str, f64)> = Vec::new();
+    for (s, (b, x)) in m.sensors.iter().zip(o.sensors.iter().zip(&refined)) {
+        if matches!(s.kind, crate::model::SensorKind::Energy) {
+            continue;
+        }
+        for (c, u) in sensors::units(&s.kind).into_iter().enumerate() {
+            let mag = [b.min[c], b.max[c], x.min[c], x.max[c]]
+                .iter()
+                .filter(|v| v.is_finite())
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+            match magnitudes.iter_mut().find(|(w, _)| *w == u) {
+                Some((_, top)) => *top = top.max(mag),
+                None => magnitudes.push((u, mag)),
+            }
+        }
+    }
     out.rel_diff = m
         .sensors
         .iter()
         .zip(o.sensors.iter().zip(&refined))
         .map(|(s, (b, x))| {
             let energy = matches!(s.kind, crate::model::SensorKind::Energy);
-            rel_diff(b, x, &sensors::units(&s.kind), energy)
+            rel_diff(b, x, &sensors::units(&s.kind), energy, &magnitudes)
         })
         .collect();
     out.refined = refined;
@@ -599,15 +626,15 @@ mod tests {
         // x moves over [−1, 1] (range 2); z stays at 1e-17 round-off against a 1 m scale
         let b = s(vec![-1.0, 0.0], vec![1.0, 1e-17]);
         let r = s(vec![-1.02, 0.0], vec![1.0, -1e-17]);
-        let d = rel_diff(&b, &r, &["m", "m"], false);
+        let d = rel_diff(&b, &r, &["m", "m"], false, &[]);
         assert!((d[0] - 0.01).abs() < 1e-12, "{d:?}");
         assert!(d[1] < 1e-9, "{d:?}");
         // identical runs: 0, also for a sensor that is 0 throughout
         let z = s(vec![0.0], vec![0.0]);
-        assert_eq!(rel_diff(&z, &z, &["m"], false), vec![0.0]);
+        assert_eq!(rel_diff(&z, &z, &["m"], false, &[]), vec![0.0]);
         // a refined run that blew up
         let inf = s(vec![f64::NAN], vec![f64::NAN]);
-        assert_eq!(rel_diff(&z, &inf, &["m"], false), vec![f64::INFINITY]);
+        assert_eq!(rel_diff(&z, &inf, &["m"], false, &[]), vec![f64::INFINITY]);
     }
 
     #[test]
@@ -620,9 +647,9 @@ mod tests {
         // kinetic over [0, 5] J; the total at −5.3 J drifts by 1e-5 J, by half that refined
         let b = s(vec![0.0, -5.30001], vec![5.0, -5.3]);
         let r = s(vec![0.0, -5.300005], vec![5.0, -5.3]);
-        let alone = rel_diff(&b, &r, &["J", "J"], false);
+        let alone = rel_diff(&b, &r, &["J", "J"], false, &[]);
         assert!(alone[1] > 0.4, "{alone:?}");
-        let shared = rel_diff(&b, &r, &["J", "J"], true);
+        let shared = rel_diff(&b, &r, &["J", "J"], true, &[]);
         assert!((shared[1] - 1e-6).abs() < 1e-9, "{shared:?}");
         assert_eq!(shared[0], alone[0]);
     }

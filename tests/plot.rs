@@ -107,8 +107,13 @@ fn small(name: &str) -> PathBuf {
 
 /// Campbell campaign: omega = 0, 5, …, 40 rad/s.
 fn campbell_file() -> (PathBuf, Vec<f64>) {
+    campbell_file_named("campbell.h5")
+}
+
+/// [`campbell_file`] under another name (the tests run in parallel).
+fn campbell_file_named(name: &str) -> (PathBuf, Vec<f64>) {
     let omegas: Vec<f64> = (0..9).map(|i| 5.0 * i as f64).collect();
-    let p = out("campbell.h5");
+    let p = out(name);
     write_campaign(&p, &omegas, false);
     (p, omegas)
 }
@@ -579,4 +584,47 @@ fn a_campbell_diagram_with_absurdly_many_harmonics_is_refused() {
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("from 1 to 100"), "{err}");
+}
+
+/// A `modes --vary` branch whose values go negative (a divergence: −s/2π, a growth rate)
+/// leaves those values out of the Campbell chart and says so; the chart's axis starts at
+/// 0, and they were drawn there as a flat 0 Hz branch (a probe, session 46).
+#[test]
+fn a_divergent_branch_is_left_out_of_the_campbell_chart_with_a_note() {
+    let (h5, omegas) = campbell_file_named("campbell_divergent.h5");
+    let freqs: Vec<f64> = omegas
+        .iter()
+        .map(|&w| {
+            if (10.0..=20.0).contains(&w) {
+                -1.5
+            } else {
+                3.0 + 0.1 * w
+            }
+        })
+        .collect();
+    let branches = serde_json::json!({
+        "omega_rad_s": omegas,
+        "branches": [{"branch": 1, "frequencies_hz": freqs, "damping_ratios": [], "mac": []}],
+    });
+    let modes = out("divergent_modes.json");
+    std::fs::write(&modes, branches.to_string()).unwrap();
+    let img = out("campbell_divergent.svg");
+    let o = latdyn(&[
+        "plot",
+        s(&h5),
+        "--campbell",
+        "omega",
+        "--derived",
+        "first_bending_hz",
+        "--modes",
+        s(&modes),
+        "-o",
+        s(&img),
+    ]);
+    ok(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("3 values between omega = 10 and 20 are divergent"),
+        "{err}"
+    );
 }

@@ -354,3 +354,28 @@ print(json.dumps(out))
     assert_eq!(h["refined_max"], serde_json::json!([2, 6]));
     assert_eq!(h["status_root"], "complete");
 }
+
+/// `--verify` measures a component at rest against the largest magnitude in its unit
+/// over the whole model: the shipped four-bar's coupler keeps its orientation, and its
+/// rz (1e-13 rad of round-off, the other angles of its sensor 0 too) read 175 %
+/// "exceeded" beside hinge angles of 0.5 rad (a probe, session 46).
+#[test]
+fn verify_does_not_read_a_round_off_rotation_as_discretisation_error() {
+    let o = Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args([
+            "sweep",
+            "models/fourbar.toml",
+            "--vary",
+            "v0=0.5:2:3",
+            "--verify",
+            "2",
+            "--json",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let v = json(&o);
+    let ver = &v["verification"];
+    assert!(ver["max_rel_diff"].as_f64().unwrap() < 1e-2, "{ver}");
+    assert_eq!(ver["warnings"], serde_json::json!([]), "{ver}");
+}

@@ -437,11 +437,13 @@ fn significant_range(
 }
 
 /// The share of the largest range of a unit below which a component's range is
-/// round-off (f64 element stage). On f32 the element stage's unit round-off, 6e-8, is
-/// used instead: the four-bar's coupler, which translates without turning, read
-/// 1.6e-12 rad of f32 noise in its rz against 0.2 rad of hinge angles, was estimated at
-/// 200 % and sent `--accuracy` to 16 times the steps for nothing (a probe, session 46).
-const UNIT_NOISE: f64 = 1e-12;
+/// round-off (f64 element stage): round-off accumulates over the steps, and the
+/// four-bar's coupler, which translates without turning, reads 2e-12 rad in its rz on
+/// 16 elements at dt = 5e-4 s (1e-10 on 32) against 0.5 rad of hinge angles, which was
+/// warned at 88 % with 1e-12 here (a probe, session 46). On f32 the element stage's unit
+/// round-off, 6e-8, is used where larger: the same coupler read 1.6e-12 rad of f32 noise,
+/// was estimated at 200 % and sent `--accuracy` to 16 times the steps for nothing.
+const UNIT_NOISE: f64 = 1e-9;
 
 /// A component whose values change by less than this share of their magnitude moves
 /// within their round-off (64 ε): a position 1e7 m from the origin is resolved to 2e-9 m.

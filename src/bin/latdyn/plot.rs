@@ -1112,10 +1112,38 @@ pub fn plot_campbell(
     }
     let mut branch_crossings = Vec::new();
     for (b, br) in spec.branches.iter().enumerate() {
+        // a negative value is a divergence's growth rate (−s/2π, `latdyn modes`), not a
+        // frequency: left out, and said; the chart's axis starts at 0, and it was drawn
+        // there as a 0 Hz branch (a probe, session 46)
+        let divergent: Vec<f64> = br
+            .omega
+            .iter()
+            .zip(&br.frequencies_hz)
+            .filter(|(_, f)| **f < 0.0)
+            .map(|(&x, _)| x)
+            .collect();
+        if let (Some(lo), Some(hi)) = (divergent.first(), divergent.last()) {
+            notes.push(format!(
+                "branch {} ({}): {} values between {} = {} and {} are divergent (negative: \
+                 a growth rate, not a frequency; `latdyn modes` warns them) and are not drawn",
+                b + 1,
+                br.label,
+                divergent.len(),
+                spec.parameter,
+                fmt_num(*lo),
+                fmt_num(*hi)
+            ));
+        }
         let y_rad: Vec<f64> = br
             .frequencies_hz
             .iter()
-            .map(|f| std::f64::consts::TAU * f)
+            .map(|f| {
+                if *f < 0.0 {
+                    f64::NAN
+                } else {
+                    std::f64::consts::TAU * f
+                }
+            })
             .collect();
         for (n, om) in campbell_crossings(&br.omega, &y_rad, spec.harmonics) {
             let nf = n as f64;
