@@ -228,10 +228,11 @@ pub(crate) fn coord_scale(model: &Model) -> f64 {
 /// a four-bar standing in gravity: mechanisms whose stiffness along the motion comes
 /// only from the axial forces the loads cause) cannot start Newton, though the loads
 /// hold it: the reference has no axial force yet. Newton's steps from the reference then
-/// factor the tangent with this share of each diagonal entry added to it: a load that
-/// does no work along the free motion (gravity along a hanging beam) gives a step
-/// without it, after which the axial forces stiffen (or, compressed, destabilise) the
-/// motion and Newton goes on with the tangent itself. Small against every real stiffness
+/// factor the tangent with this share of each diagonal entry added to it, and each such
+/// step is taken without its part along the free motions
+/// ([`NewtonSystem::solve_neg_residual_without_free`]): it only strains the structure,
+/// after which the axial forces stiffen (or, compressed, destabilise) the motion and
+/// Newton goes on with the tangent itself. Small against every real stiffness
 /// after the LU's unit scaling, far above the LU's singularity limit (n ε); an error in
 /// the soft directions of the one shifted step is Newton's to correct. A motion still
 /// free at the solution is reported as before (see `solve_until`).
