@@ -169,3 +169,25 @@ fn run_json_reports_the_element_stage_time_of_a_beam_scene() {
     assert!(el > 0.0, "element stage time {el} in {st}");
     assert!(asm >= 0.0, "assembly time {asm} in {st}");
 }
+
+/// `--backend auto` that chooses the CPU (f64 only) says that `--precision f32` does not
+/// apply; it ran f64 without a word (the JSON recorded it; a probe, session 46).
+#[test]
+fn auto_backend_on_the_cpu_says_an_f32_request_does_not_apply() {
+    let out = latdyn(&[
+        "run",
+        "models/pendulum.toml",
+        "--set",
+        "t_end=0.01",
+        "--precision",
+        "f32",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    if v["backend"] == "cpu" {
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--precision f32 does not apply"), "{err}");
+        assert_eq!(v["precision"], "f64", "{v}");
+    }
+}

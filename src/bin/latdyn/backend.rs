@@ -65,6 +65,14 @@ pub(crate) fn choose_stage(
         }
     };
     if !want_gpu {
+        // auto chose the CPU, which is f64 only: an f32 asked for is not what runs, and
+        // that went unsaid (the JSON and the file record cpu/f64; a probe, session 46)
+        if precision == Precision::F32 {
+            eprintln!(
+                "note: --backend auto chose the CPU element stage, which is f64 only: \
+                 --precision f32 does not apply (--backend gpu runs f32)"
+            );
+        }
         return Ok((Stage::cpu(), None));
     }
     // a software adapter (llvmpipe, lavapipe) compiles the kernels on first use, which
