@@ -526,9 +526,9 @@ impl TimeError {
 
     /// Relative scale of a component: its range so far, or a floor where it has not
     /// moved (see [`significant_range`]).
-    fn scale(&self, k: usize, c: usize) -> f64 {
+    fn scale(&self, k: usize, c: usize, units: &[(&'static str, f64)]) -> f64 {
         let range = self.hi[k][c] - self.lo[k][c];
-        if self.significant(k, c, None, &self.unit_ranges(None)) {
+        if self.significant(k, c, None, units) {
             range
         } else {
             f64::INFINITY
@@ -594,6 +594,7 @@ impl TimeError {
     /// Per sensor, the largest of the deviations `acc` (per component, as [`Self::acc`])
     /// relative to this run's ranges (NaN: not estimable).
     fn relative(&self, acc: &[Vec<f64>]) -> Vec<f64> {
+        let units = self.unit_ranges(None);
         (0..acc.len())
             .map(|k| {
                 if !self.estimable[k] {
@@ -601,7 +602,7 @@ impl TimeError {
                 }
                 (0..acc[k].len())
                     .map(|c| {
-                        let sc = self.scale(k, c);
+                        let sc = self.scale(k, c, &units);
                         // the cap holds against the ranges at each step; a component
                         // whose range was still round-off there (so uncapped) and grew
                         // later read 57 730 % on a cantilever of EI = 1e12
@@ -1525,6 +1526,8 @@ impl<'m> Integrator<'m> {
         let mut dv = std::mem::take(&mut self.te.gx0);
         let mut dev = std::mem::take(&mut b.dev);
         dev.resize_with(ys.len(), Vec::new);
+        // the same sample for every band: one set of unit ranges
+        let units = self.te.unit_ranges(Some(ys));
         for band in 0..=BAND_KAPPAS.len() {
             // the window's displacement in the band, and then the error's
             let mut worst = 0.0f64;
@@ -1538,7 +1541,6 @@ impl<'m> Integrator<'m> {
                 let drivers = self.te.drivers && self.moved_reactions().await;
                 self.sensor_deviation(ys, &mut dev, drivers);
                 let te = &mut self.te;
-                let units = te.unit_ranges(Some(ys));
                 for (k, (y, dy)) in ys.iter().zip(&dev).enumerate() {
                     let range = |c: usize| te.hi[k][c].max(y[c]) - te.lo[k][c].min(y[c]);
                     for (c, d) in dy.iter().enumerate() {
@@ -2184,23 +2186,23 @@ impl<'m> Integrator<'m> {
     /// A lock is an inelastic impact: the hinges' rates stop through an impulse that acts
     /// on their own coordinates only (see [`Self::lock_impulse`]).
     async fn check_locks(&mut self) {
-        let mut locking: Vec<(usize, usize, f64)> = Vec::new();
+        // the hinges that lock now, each with the lock angle it snaps back to where it
+        // locks by angle
+        let reached: Vec<(usize, Option<f64>)> = (self.model.hinges.iter().enumerate())
+            .filter(|(ih, _)| !self.s.locked[*ih])
+            .filter_map(|(ih, h)| {
+                let (by_time, by_angle) = self.lock_reached(h, &self.s);
+                (by_time || by_angle).then(|| (ih, h.lock_angle.filter(|_| by_angle)))
+            })
+            .collect();
         // the hinge carried furthest past its lock angle by the step, and by how much
-        let mut snapped: Option<(usize, f64)> = None;
-        for (ih, h) in self.model.hinges.iter().enumerate() {
-            if self.s.locked[ih] {
-                continue;
-            }
-            let (by_time, by_angle) = self.lock_reached(h, &self.s);
-            if by_time || by_angle {
-                if let (true, Some(la)) = (by_angle, h.lock_angle) {
-                    let over = (self.s.q[h.dof] - la).abs();
-                    if over > 0.0 && snapped.is_none_or(|(_, o)| over > o) {
-                        snapped = Some((ih, over));
-                    }
-                }
-            }
-        }
+        let snapped = reached
+            .iter()
+            .filter_map(|&(ih, la)| {
+                let over = (self.s.q[self.model.hinges[ih].dof] - la?).abs();
+                (over > 0.0).then_some((ih, over))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1));
         // The snap back to the lock angle turns the hinge alone, not the members beyond
         // it, and strains them: energy no lock has, which the motion after it carries
         // (a stiff rod locking at 1 rad at dt = 1e-3 gained 3.7 J of strain against its
@@ -2210,18 +2212,14 @@ impl<'m> Integrator<'m> {
             Some(_) => self.strain_energy_now().await,
             None => None,
         };
-        for (ih, h) in self.model.hinges.iter().enumerate() {
-            if self.s.locked[ih] {
-                continue;
+        let mut locking: Vec<(usize, usize, f64)> = Vec::new();
+        for &(ih, la) in &reached {
+            let dof = self.model.hinges[ih].dof;
+            if let Some(la) = la {
+                self.s.q[dof] = la;
             }
-            let (by_time, by_angle) = self.lock_reached(h, &self.s);
-            if by_time || by_angle {
-                if let (true, Some(la)) = (by_angle, h.lock_angle) {
-                    self.s.q[h.dof] = la;
-                }
-                if let Some(e) = self.model.dofs[h.dof].eq {
-                    locking.push((ih, e, self.s.v[h.dof]));
-                }
+            if let Some(e) = self.model.dofs[dof].eq {
+                locking.push((ih, e, self.s.v[dof]));
             }
         }
         if locking.is_empty() {
