@@ -24,13 +24,17 @@ pub enum StaticsError {
         cause: String,
     },
     #[error(
-        "statics: the stiffness is singular at the reference state (a mechanism or a body \
-         that is not held), Newton cannot start: free motion{plural} (coordinate: share) {motions}. Hold the model \
-         (supports, drivers, a hinge stiffness) or give it stiffness in these directions"
+        "statics: {situation}: free motion{plural} (coordinate: share) {motions}. Hold the \
+         model (supports, drivers, a hinge stiffness) or give it stiffness in these \
+         directions{hint}"
     )]
     FreeMotion {
         motions: String,
         plural: &'static str,
+        /// where the motion was found free: [`NOT_HELD_AT_REFERENCE`] or
+        /// [`NOT_HELD_AT_SOLUTION`]
+        situation: &'static str,
+        hint: &'static str,
     },
     #[error(
         "statics: limit point at load factor {lambda:.6} (the loads reached are {lambda:.6} × \
@@ -61,6 +65,21 @@ pub struct StaticsReport {
     /// element's small-deformation range: [`crate::assembly::deformation_angle_warning`])
     pub warnings: Vec<String>,
 }
+
+/// No load step converged from the reference, whose stiffness is singular. Newton did
+/// start there (see [`SINGULAR_SHIFT`]), so the message says it found no equilibrium,
+/// not that it could not start (as it did until session 47).
+pub const NOT_HELD_AT_REFERENCE: &str = "the stiffness is singular at the reference state (a \
+     mechanism or a body that is not held), and Newton, started from it by steps that only \
+     strain the structure, found no equilibrium under the loads";
+/// What the loads leave free where Newton converged from a singular reference.
+pub const NOT_HELD_AT_SOLUTION: &str = "the loads do not hold the model: the stiffness at the \
+     equilibrium found is singular (a mechanism or a body that is not held)";
+/// A load-held mechanism far from its reference is the case Newton's linear update of the
+/// nodes does not reach (a hinged beam pushed through 0.8 rad on 32 elements: a swing
+/// clipped to 0.5 rad stretches it 12 %), so the advice names it.
+const FAR_SWING_HINT: &str = "; if the loads do hold it, but far from the reference (a hinged \
+     member they swing through a large angle), start the model nearer that equilibrium";
 
 /// Largest angle change of one Newton iteration [rad].
 pub const MAX_NEWTON_ANGLE: f64 = 0.5;
@@ -610,7 +629,14 @@ fn diagnose(model: &Model, s: &State, lambda: f64) -> Option<StaticsError> {
         .filter(|&j| ev[j].abs() <= FREE_MOTION_TOL * scale)
         .collect();
     if lambda == 0.0 {
-        return name_free_motions(model, &free, &vecs, &d);
+        return name_free_motions(
+            model,
+            &free,
+            &vecs,
+            &d,
+            NOT_HELD_AT_REFERENCE,
+            FAR_SWING_HINT,
+        );
     }
     let min = ev.first().copied().unwrap_or(0.0);
     // the reference state's smallest scaled eigenvalue: the stiffness before the loads
@@ -668,6 +694,8 @@ fn name_free_motions(
     free: &[usize],
     vecs: &[f64],
     d: &[f64],
+    situation: &'static str,
+    hint: &'static str,
 ) -> Option<StaticsError> {
     let n = model.n_eq;
     if free.is_empty() {
@@ -685,6 +713,8 @@ fn name_free_motions(
     Some(StaticsError::FreeMotion {
         motions: parts.join("; "),
         plural: if free.len() > 1 { "s" } else { "" },
+        situation,
+        hint,
     })
 }
 
@@ -703,7 +733,7 @@ pub fn free_motions(model: &Model, s: &State, load_factor: f64) -> Option<Static
     let free: Vec<usize> = (0..n)
         .filter(|&j| ev[j].abs() <= FREE_MOTION_TOL * scale)
         .collect();
-    name_free_motions(model, &free, &vecs, &d)
+    name_free_motions(model, &free, &vecs, &d, NOT_HELD_AT_SOLUTION, "")
 }
 
 /// The largest components of a free motion, by coordinate name, as shares of the largest.
