@@ -235,6 +235,27 @@ fn stretch(l0: real, k: Kin) -> real {
     return k.u1 + (l0 / 30.0) * q;
 }
 
+// kinematics::SectionTurn: the section's axes turned by a quarter of the end twists' sum,
+// [ψ, α, β, dα/dψ, dβ/dψ, d²α/dψ², d²β/dψ², S_yz]
+const TURN_SHARE: real = 0.25;
+fn section_turn(phi: array<real, 6>) -> array<real, 8> {
+    let psi = TURN_SHARE * (phi[0] + phi[3]);
+    let p2 = psi * psi;
+    let id = 1.0 / (1.0 + p2);
+    let id2 = id * id;
+    let id3 = id2 * id;
+    return array<real, 8>(
+        psi,
+        -(2.0 * p2) * id,
+        2.0 * psi * id,
+        -(4.0 * psi) * id2,
+        2.0 * (1.0 - p2) * id2,
+        (12.0 * p2 - 4.0) * id3,
+        (4.0 * p2 - 12.0) * psi * id3,
+        2.0 * phi[1] * phi[2] + phi[1] * phi[5] + phi[4] * phi[2] + 2.0 * phi[4] * phi[5],
+    );
+}
+
 // kinematics::energy: Bernoulli strain energy
 fn energy(p: array<real, 7>, l0: real, k: Kin) -> real {
     let fx1 = k.phi[0];
@@ -247,8 +268,9 @@ fn energy(p: array<real, 7>, l0: real, k: Kin) -> real {
     let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
     let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
     let s = stretch(l0, k);
+    let t = section_turn(k.phi);
     return 0.5 * (p[0] / l0) * s * s + 0.5 * (p[3] / l0) * tw * tw + (2.0 * p[2] / l0) * bz
-        + (2.0 * p[1] / l0) * by;
+        + (2.0 * p[1] / l0) * by + ((p[1] - p[2]) / l0) * (t[1] * (by - bz) + t[2] * t[7]);
 }
 
 // force::Grad: the deformation measures' first derivatives over the 12 element dofs

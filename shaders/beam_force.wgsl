@@ -32,13 +32,25 @@ fn energy_partials(p: array<real, 7>, l0: real, k: Kin) -> array<real, 7> {
     let cz = 2.0 * p[2] / l0;
     let n = (p[0] / l0) * stretch(l0, k);
     let g = n * (l0 / 30.0);
+    // the section's axes turned (kinematics::SectionTurn)
+    let st = section_turn(k.phi);
+    let dc = (p[1] - p[2]) / l0;
+    let ay = dc * st[1];
+    let az = dc * st[2];
+    let y1 = 2.0 * fy1 + fy2;
+    let y2 = fy1 + 2.0 * fy2;
+    let z1 = 2.0 * fz1 + fz2;
+    let z2 = fz1 + 2.0 * fz2;
+    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
+    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
+    let dpsi = TURN_SHARE * dc * (st[3] * (by - bz) + st[4] * st[7]);
     return array<real, 7>(
-        -t,
-        cy * (2.0 * fy1 + fy2) + g * (4.0 * fy1 - fy2),
-        cz * (2.0 * fz1 + fz2) + g * (4.0 * fz1 - fz2),
-        t,
-        cy * (fy1 + 2.0 * fy2) + g * (4.0 * fy2 - fy1),
-        cz * (fz1 + 2.0 * fz2) + g * (4.0 * fz2 - fz1),
+        dpsi - t,
+        cy * y1 + g * (4.0 * fy1 - fy2) + (ay * y1 + az * z1),
+        cz * z1 + g * (4.0 * fz1 - fz2) + (az * y1 - ay * z1),
+        t + dpsi,
+        cy * y2 + g * (4.0 * fy2 - fy1) + (ay * y2 + az * z2),
+        cz * z2 + g * (4.0 * fz2 - fz1) + (az * y2 - ay * z2),
         n,
     );
 }
@@ -112,22 +124,61 @@ fn tangent(p: array<real, 7>, l0: real, gv: Grad, mv: array<real, 7>) {
     }
     rank1(0u, 12u, tw, gjtw);
     let gn = n * c30;
+    // the section's axes turned (kinematics::SectionTurn): stiffnesses Cy + ΔC α and
+    // Cz − ΔC α, the planes' cross term ΔC β h and the couplings with ψ
+    let st = section_turn(phi);
+    let dc = (p[1] - p[2]) / l0;
+    let cross = dc * st[2];
+    var dpsi: A12;
+    for (var j = 0u; j < 12u; j++) {
+        dpsi[j] = TURN_SHARE * (g.dphi[0][j] + g.dphi[3][j]);
+    }
+    let y1 = 2.0 * phi[1] + phi[4];
+    let y2 = phi[1] + 2.0 * phi[4];
+    let z1 = 2.0 * phi[2] + phi[5];
+    let z2 = phi[2] + 2.0 * phi[5];
+    // ∂²U/∂ψ ∂φ for φy1, φz1, φy2, φz2
+    let q = array<real, 4>(
+        dc * (st[3] * y1 + st[4] * z1),
+        dc * (st[4] * y1 - st[3] * z1),
+        dc * (st[3] * y2 + st[4] * z2),
+        dc * (st[4] * y2 - st[3] * z2),
+    );
+    let by = phi[1] * phi[1] + phi[1] * phi[4] + phi[4] * phi[4];
+    let bz = phi[2] * phi[2] + phi[2] * phi[5] + phi[5] * phi[5];
+    let hpp = dc * (st[5] * (by - bz) + st[6] * st[7]);
+    let sgn = array<real, 2>(1.0, -1.0);
     for (var plane = 0u; plane < 2u; plane++) {
-        // (2EI_y/L0, φy1, φy2), then (2EI_z/L0, φz1, φz2)
-        let c = 2.0 * p[1u + plane] / l0;
+        // (2EI_y/L0, φy1, φy2), then (2EI_z/L0, φz1, φz2), turned
+        let c = 2.0 * p[1u + plane] / l0 + sgn[plane] * dc * st[1];
         let a1 = 1u + plane;
         let a2 = 4u + plane;
+        let o1 = 2u - plane;
+        let o2 = 5u - plane;
         let d11 = 2.0 * c + 4.0 * gn;
         let d12 = c - gn;
+        let e11 = 2.0 * cross;
+        let e12 = cross;
+        let q1 = q[plane];
+        let q2 = q[2u + plane];
         var r1: A12;
         var r2: A12;
         for (var j = 0u; j < 12u; j++) {
-            r1[j] = d11 * g.dphi[a1][j] + d12 * g.dphi[a2][j];
-            r2[j] = d12 * g.dphi[a1][j] + d11 * g.dphi[a2][j];
+            r1[j] = d11 * g.dphi[a1][j] + d12 * g.dphi[a2][j] + e11 * g.dphi[o1][j]
+                + e12 * g.dphi[o2][j] + q1 * dpsi[j];
+            r2[j] = d12 * g.dphi[a1][j] + d11 * g.dphi[a2][j] + e12 * g.dphi[o1][j]
+                + e11 * g.dphi[o2][j] + q2 * dpsi[j];
         }
         rank1(0u, 12u, g.dphi[a1], r1);
         rank1(0u, 12u, g.dphi[a2], r2);
     }
+    // ψ's row
+    var prow: A12;
+    for (var j = 0u; j < 12u; j++) {
+        prow[j] = q[0] * g.dphi[1][j] + q[1] * g.dphi[2][j] + q[2] * g.dphi[4][j]
+            + q[3] * g.dphi[5][j] + hpp * dpsi[j];
+    }
+    rank1(0u, 12u, dpsi, prow);
     // geometric part: the moments' share, Σ_i ψ_iᵀ A_i ψ_i + the rotation rows' −(c × ν_i)·Θ
     // (ε_m = T_Cᵀ x̂_m is row m of T_C)
     var tc = g.kin.tc;

@@ -174,14 +174,24 @@ pub(super) fn energy_partials<R: Real>(
     let four = R::cst(4.0);
     let n = R::lift(p.ea / l0) * stretch(l0, k);
     let g = n * R::lift(l0 / Real::cst(30.0));
+    // the section's axes turned by the mean twist (see `SectionTurn`)
+    let st = SectionTurn::of(&k.phi);
+    let dc = R::lift((p.eiy - p.eiz) / l0);
+    let (ay, az) = (dc * st.alpha, dc * st.beta);
+    let (y1, y2) = (two * fy1 + fy2, fy1 + two * fy2);
+    let (z1, z2) = (two * fz1 + fz2, fz1 + two * fz2);
+    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
+    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
+    // ∂U/∂φx1 = ∂U/∂φx2 = ½ ∂U/∂ψ
+    let dpsi = R::cst(TURN_SHARE) * dc * (st.dalpha * (by - bz) + st.dbeta * st.syz);
     (
         [
-            -t,
-            cy * (two * fy1 + fy2) + g * (four * fy1 - fy2),
-            cz * (two * fz1 + fz2) + g * (four * fz1 - fz2),
-            t,
-            cy * (fy1 + two * fy2) + g * (four * fy2 - fy1),
-            cz * (fz1 + two * fz2) + g * (four * fz2 - fz1),
+            dpsi - t,
+            cy * y1 + g * (four * fy1 - fy2) + (ay * y1 + az * z1),
+            cz * z1 + g * (four * fz1 - fz2) + (az * y1 - ay * z1),
+            t + dpsi,
+            cy * y2 + g * (four * fy2 - fy1) + (ay * y2 + az * z2),
+            cz * z2 + g * (four * fz2 - fz1) + (az * y2 - ay * z2),
         ],
         n,
     )
@@ -361,17 +371,53 @@ pub(super) fn tangent_into<R: Real>(
     let tw: [R; NDOF] = std::array::from_fn(|j| dp[3][j] - dp[0][j]);
     let gjtw = tw.map(|x| gj * x);
     let gn = n * c30;
+    // the section's axes turned by the mean twist (see `SectionTurn`): the bending
+    // stiffnesses Cy + ΔC α and Cz − ΔC α, the cross term ΔC β h between the planes, and
+    // the couplings with ψ, whose gradient is dψ = ½(∂φx1 + ∂φx2)
+    let st = SectionTurn::of(&phi);
+    let dc = R::lift((p.eiy - p.eiz) / l0);
+    let two = R::cst(2.0);
+    let cross = dc * st.beta;
+    let dpsi: [R; NDOF] = std::array::from_fn(|j| R::cst(TURN_SHARE) * (dp[0][j] + dp[3][j]));
+    let (fy1, fz1, fy2, fz2) = (phi[1], phi[2], phi[4], phi[5]);
+    let (y1, y2) = (two * fy1 + fy2, fy1 + two * fy2);
+    let (z1, z2) = (two * fz1 + fz2, fz1 + two * fz2);
+    // ∂²U/∂ψ ∂φ for φy1, φz1, φy2, φz2
+    let q = [
+        dc * (st.dalpha * y1 + st.dbeta * z1),
+        dc * (st.dbeta * y1 - st.dalpha * z1),
+        dc * (st.dalpha * y2 + st.dbeta * z2),
+        dc * (st.dbeta * y2 - st.dalpha * z2),
+    ];
+    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
+    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
+    let hpp = dc * (st.ddalpha * (by - bz) + st.ddbeta * st.syz);
     // per bending plane (y: φy1, φy2; z: φz1, φz2) the rows that multiply ∂φ_a1 and ∂φ_a2
     let mut bend = [[z; NDOF]; 4];
-    for (pl, c) in [two_b * p.eiy / l0, two_b * p.eiz / l0]
-        .into_iter()
-        .enumerate()
+    for (pl, c) in [
+        R::lift(two_b * p.eiy / l0) + dc * st.alpha,
+        R::lift(two_b * p.eiz / l0) - dc * st.alpha,
+    ]
+    .into_iter()
+    .enumerate()
     {
         let (a1, a2) = (1 + pl, 4 + pl);
-        let (d11, d12) = (R::lift(two_b * c) + four * gn, R::lift(c) - gn);
-        bend[2 * pl] = std::array::from_fn(|j| d11 * dp[a1][j] + d12 * dp[a2][j]);
-        bend[2 * pl + 1] = std::array::from_fn(|j| d12 * dp[a1][j] + d11 * dp[a2][j]);
+        // the other plane's angles
+        let (o1, o2) = (2 - pl, 5 - pl);
+        let (d11, d12) = (two * c + four * gn, c - gn);
+        let (e11, e12) = (two * cross, cross);
+        let (q1, q2) = (q[pl], q[2 + pl]);
+        bend[2 * pl] = std::array::from_fn(|j| {
+            d11 * dp[a1][j] + d12 * dp[a2][j] + e11 * dp[o1][j] + e12 * dp[o2][j] + q1 * dpsi[j]
+        });
+        bend[2 * pl + 1] = std::array::from_fn(|j| {
+            d12 * dp[a1][j] + d11 * dp[a2][j] + e12 * dp[o1][j] + e11 * dp[o2][j] + q2 * dpsi[j]
+        });
     }
+    // ψ's row: Σ_φ ∂²U/∂ψ∂φ ∂φ + ∂²U/∂ψ² dψ, multiplying dψ
+    let psi_row: [R; NDOF] = std::array::from_fn(|j| {
+        q[0] * dp[1][j] + q[1] * dp[2][j] + q[2] * dp[4][j] + q[3] * dp[5][j] + hpp * dpsi[j]
+    });
     // geometric part: the moments' share, Σ_i ψ_iᵀ A_i ψ_i + the rotation rows' −(c × ν_i)·Θ
     let tc = &g.kin.tc;
     // ε_m = T_Cᵀ x̂_m: row m of T_C
@@ -464,6 +510,7 @@ pub(super) fn tangent_into<R: Real>(
             add(&mut row, dp[1 + pl][r], &bend[2 * pl]);
             add(&mut row, dp[4 + pl][r], &bend[2 * pl + 1]);
         }
+        add(&mut row, dpsi[r], &psi_row);
         for i in 0..2 {
             for q in 0..3 {
                 add(&mut row, g.psi[i][q][r], &pr[i][q]);
