@@ -265,6 +265,23 @@ impl CampaignFile {
                 crate::model::elide_long_words(&hash)
             )));
         }
+        // the model text that `merge` and `--resume` compile the missing variants from
+        // must be the one the definition names (until session 47 an edited
+        // /model/source gave a merge's missing rows g = 1 where the campaign's is 9.81)
+        let model_source = scalar_text(layout::MODEL_SOURCE)?;
+        let named = serde_json::from_str::<serde_json::Value>(&definition)
+            .ok()
+            .and_then(|d| d["model_sha256"].as_str().map(str::to_string));
+        let actual = hex(&Sha256::digest(model_source.as_bytes()));
+        if named.as_deref() != Some(actual.as_str()) {
+            return Err(err(format!(
+                "its stored model text (/{}) is not the one its campaign definition names \
+                 (model_sha256 {}, the text's {actual}): the file was edited or damaged; \
+                 rerun or restore it",
+                layout::MODEL_SOURCE,
+                named.as_deref().unwrap_or("absent")
+            )));
+        }
         let varied = strings(layout::VARIED)?;
         let table = f64s(layout::VARIANTS)?;
         let n_total = ds(layout::VARIANTS)?.shape().first().copied().unwrap_or(0);
@@ -377,7 +394,7 @@ impl CampaignFile {
                 variants,
                 set,
             },
-            model_source: scalar_text(layout::MODEL_SOURCE)?,
+            model_source,
             model_path: scalar_text(layout::MODEL_PATH)?,
             backend: file.root_attr(layout::attr::BACKEND).unwrap_or_default(),
             precision: file.root_attr(layout::attr::PRECISION).unwrap_or_default(),
@@ -525,9 +542,13 @@ pub enum MergeError {
 /// parameter whose value is not the one the campaign's definition gives that variant.
 /// `merge` copies the values as stored, so an edited table would label the samples
 /// wrongly.
-fn parameter_mismatch(f: &CampaignFile) -> Option<String> {
+/// Only the rows `check` accepts are checked (`--resume` recomputes the others' values).
+fn parameter_mismatch(f: &CampaignFile, check: impl Fn(usize) -> bool) -> Option<String> {
     let column = |name: &str| f.parameter_names.iter().position(|n| n == name);
     for (row, &g) in f.global_index.iter().enumerate() {
+        if !check(row) {
+            continue;
+        }
         let values = &f.parameter_values[row];
         if let Some(k) = values.iter().position(|v| !v.is_finite()) {
             return Some(format!(
@@ -633,7 +654,7 @@ pub fn merge(
             }
             Some(_) => {}
         }
-        if let Some(why) = parameter_mismatch(&f) {
+        if let Some(why) = parameter_mismatch(&f, |_| true) {
             return Err(MergeError::Refused(format!(
                 "{}: {why} (was the file edited?)",
                 p.display()
@@ -994,6 +1015,15 @@ pub fn resume_until(
         .iter()
         .map(|s| s.state != VariantState::Completed)
         .collect();
+    // a completed row keeps its stored values: an edited one would label its samples
+    // wrongly, as `merge` refuses (until session 47 resume kept omega = 77 on the
+    // samples of omega = 0 and marked the file complete; a probe)
+    if let Some(why) = parameter_mismatch(&f, |row| !rerun.get(row).copied().unwrap_or(true)) {
+        return Err(MergeError::Refused(format!(
+            "--resume {}: {why} (was the file edited?)",
+            f.path.display()
+        )));
+    }
     let rows: Vec<usize> = (0..rerun.len()).filter(|&r| rerun[r]).collect();
     // an index outside the campaign given now changes the definition: the hash tells
     let gis: Vec<usize> = rows

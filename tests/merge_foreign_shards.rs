@@ -329,3 +329,58 @@ fn merge_reads_texts_that_h5py_rewrote_as_variable_length_strings() {
     assert!(!svg.contains('\0'), "a NUL in the chart");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A missing variant of a merge, or one `--resume` reruns, is compiled from the stored
+/// model text: one edited in the file (here a comment appended; the probe changed
+/// g = 9.81 to 1.0) must be refused as the campaign definition's model_sha256 is not its
+/// hash. Until session 47 the merge exited 4 and gave the missing rows g = 1 (a probe).
+#[test]
+fn merge_and_resume_refuse_a_file_whose_model_text_is_not_the_definitions() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("source");
+    shards(&dir);
+    h5py(
+        &dir,
+        "import h5py, shutil\nshutil.copy('sh2.h5', 'bad.h5')\nwith h5py.File('bad.h5', 'r+') as f:\n    s = f['model/source'][()]\n    s = s.decode() if isinstance(s, bytes) else s\n    del f['model/source']\n    f['model/source'] = s + '\\n# edited\\n'\n",
+    );
+    let out = run(&dir, &["merge", "sh1.h5", "bad.h5", "-o", "m.h5", "--json"]);
+    refused(&out, "source", &["bad.h5", "model text", "model_sha256"]);
+    assert!(!dir.join("m.h5").exists());
+    let m = model();
+    let mut args = vec!["sweep", m.as_str()];
+    args.extend(SWEEP);
+    args.extend(["--resume", "bad.h5"]);
+    refused(&run(&dir, &args), "resume", &["bad.h5", "model text"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--resume` keeps a completed row as stored, so a parameter value edited there would
+/// label its samples wrongly: refused as `merge` refuses it. Until session 47 the resume
+/// exited 0 and marked the file complete with theta0 = 77 on the samples of the row's
+/// own value (a probe, on the rotating cantilever's omega).
+#[test]
+fn resume_refuses_an_edited_parameter_value_in_a_completed_row() {
+    if !common::h5py_available() {
+        eprintln!("SKIPPED: h5py is not installed");
+        return;
+    }
+    let dir = scratch("resume_values");
+    shards(&dir);
+    h5py(
+        &dir,
+        "import h5py, shutil\nshutil.copy('sh1.h5', 'bad.h5')\nwith h5py.File('bad.h5', 'r+') as f:\n    names = [n.decode() if isinstance(n, bytes) else n for n in f['parameters/names'][:]]\n    v = f['parameters/values'][:]\n    v[0, names.index('theta0')] = 77.0\n    f['parameters/values'][:] = v\n",
+    );
+    let m = model();
+    let mut args = vec!["sweep", m.as_str()];
+    args.extend(SWEEP);
+    args.extend(["--resume", "bad.h5"]);
+    refused(
+        &run(&dir, &args),
+        "resume",
+        &["bad.h5", "theta0", "77", "edited"],
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
