@@ -219,8 +219,19 @@ impl Range {
         let n = (self.count - 1) as f64;
         let span = self.stop - self.start;
         if span.is_finite() {
+            // the last value is STOP itself, as numpy's linspace gives it: start + span
+            // rounds (1e-3:2.5e-4:4 ended at 2.4999999999999999e-4, so the variant was not
+            // bit-identical to `run --set dt=2.5e-4`; a probe, session 47). A campaign
+            // written before whose last value was an ulp off is refused by --resume as a
+            // changed definition (variants_sha256), not resumed with other values.
             (0..self.count)
-                .map(|i| self.start + span * i as f64 / n)
+                .map(|i| {
+                    if i + 1 == self.count {
+                        self.stop
+                    } else {
+                        self.start + span * i as f64 / n
+                    }
+                })
                 .collect()
         } else {
             // a span past f64 (1e308 to -1e308) made every value but the first NaN; the
@@ -1413,8 +1424,20 @@ mod tests {
         let r = super::Range::parse("x=1e308:-1e308:3").unwrap();
         assert_eq!(r.values(), vec![1e308, 0.0, -1e308]);
         let r = super::Range::parse("x=0.1:0.7:4").unwrap();
-        let plain: Vec<f64> = (0..4).map(|i| 0.1 + (0.7 - 0.1) * i as f64 / 3.0).collect();
-        assert_eq!(r.values(), plain);
+        let plain: Vec<f64> = (0..3).map(|i| 0.1 + (0.7 - 0.1) * i as f64 / 3.0).collect();
+        assert_eq!(r.values()[..3], plain);
+    }
+
+    #[test]
+    fn a_range_ends_exactly_on_its_stop_value() {
+        for (spec, stop) in [
+            ("dt=1e-3:2.5e-4:4", 2.5e-4),
+            ("dt=1e-3:3e-4:2", 3e-4),
+            ("x=0:0.3:4", 0.3),
+        ] {
+            let v = super::Range::parse(spec).unwrap().values();
+            assert_eq!(*v.last().unwrap(), stop, "{spec}: {v:?}");
+        }
     }
 
     #[test]

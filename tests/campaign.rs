@@ -555,3 +555,33 @@ fn merge_and_resume_carry_the_verification_of_shard_1() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert_same_campaign(&before, &merged);
 }
+
+/// A varied dt that does not divide the output interval is stepped as `run` steps it
+/// (the fewest equal steps per interval) and said so per variant, as `run` says it; until
+/// session 47 only the base model's note was printed (a probe: `--vary dt=3e-4:3e-4:2`
+/// ran steps of 2.94e-4 s silently).
+#[test]
+fn a_varied_step_that_does_not_divide_the_output_interval_is_noted_per_variant() {
+    let dir = std::env::temp_dir().join(format!("latdyn_spread_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("spread.h5");
+    let o = common::latdyn(&[
+        "sweep",
+        "models/rotating_cantilever.toml",
+        "--vary",
+        "dt=1e-3:2.5e-4:4",
+        "--set",
+        "t_end=0.02",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    // 1e-3, 7.5e-4, 5e-4, 2.5e-4: only 7.5e-4 does not divide 1e-2
+    assert!(
+        err.contains("1 variant(s) step other than their dt: indices 1 (")
+            && err.contains("14 equal steps"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

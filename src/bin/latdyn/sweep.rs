@@ -308,6 +308,28 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             Err(e) => return Err(origin.name(e, &c.variants).into()),
         },
     };
+    // a varied dt (or a parameter it depends on) that does not divide its output
+    // interval is spread as the base model's note says, but said per variant: until
+    // session 47 only the base model's was (a probe: `--vary dt=3e-4:3e-4:2` ran
+    // 2.94e-4 s steps with no note)
+    let base_note = crate::run::spread_note(&base_model);
+    let spread: Vec<(usize, String)> = prepared
+        .models
+        .iter()
+        .zip(&prepared.global_index)
+        .filter_map(|(m, &g)| crate::run::spread_note(m).map(|n| (g, n)))
+        .filter(|(_, n)| Some(n) != base_note.as_ref())
+        .collect();
+    if let Some((g, first)) = spread.first() {
+        let shown: Vec<String> = spread.iter().take(20).map(|(g, _)| g.to_string()).collect();
+        eprintln!(
+            "note: {} variant(s) step other than their dt: indices {}{} (variant {g}: {})",
+            spread.len(),
+            shown.join(", "),
+            if spread.len() > shown.len() { ", …" } else { "" },
+            first.trim_start_matches("note: ")
+        );
+    }
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(prepared.models.len() as u64);
         b.set_style(
