@@ -1149,3 +1149,45 @@ fn a_signal_while_run_compiles_its_model_ends_it_interrupted_with_exit_4() {
     assert!(!dir.join("r.h5.lock").exists(), "lock file removed");
     no_temporaries(&dir);
 }
+
+/// The same panic on two worker threads is one error line, and `--json` still gets its
+/// object (status "internal_error", the file named): until session 47 stdout stayed
+/// empty and the line was printed twice (a probe).
+#[test]
+fn a_worker_panic_on_two_threads_prints_one_error_line_and_the_json_object() {
+    let dir = scratch("worker_panic_json");
+    let path = dir.join("c.h5");
+    let mut c = latdyn(&[
+        "sweep",
+        "models/pendulum.toml",
+        "--vary",
+        "theta0=0.5:2:4",
+        "--set",
+        "t_end=0.2",
+        "--threads",
+        "2",
+        "-o",
+        s(&path),
+        "--json",
+    ]);
+    c.env("LATDYN_FAULT_PANIC", "worker");
+    let out = run_for(c, 60);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(70), "{err}");
+    assert_eq!(
+        err.lines().filter(|l| l.starts_with("error:")).count(),
+        1,
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {:?}", String::from_utf8_lossy(&out.stdout)));
+    assert_eq!(v["status"], "internal_error", "{v}");
+    assert!(
+        v["message"]
+            .as_str()
+            .unwrap()
+            .contains("marked interrupted"),
+        "{v}"
+    );
+    assert_eq!(rust_summary(&path).0, "interrupted");
+}

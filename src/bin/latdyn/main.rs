@@ -74,6 +74,16 @@ pub(crate) fn install_panic_hook() {
             .location()
             .map(|l| format!(" at {}:{}:{}", l.file(), l.line(), l.column()))
             .unwrap_or_default();
+        // the same panic on several worker threads is one error (a sweep's workers
+        // printed it twice; a probe, session 47)
+        static SEEN: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+        let line = format!("{msg}{at}");
+        if let Ok(mut seen) = SEEN.lock() {
+            if seen.contains(&line) {
+                return;
+            }
+            seen.push(line);
+        }
         let mut err = std::io::stderr().lock();
         // a closed stderr must not turn the report into an abort
         let _ = writeln!(

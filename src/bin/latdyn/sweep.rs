@@ -326,7 +326,11 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             "note: {} variant(s) step other than their dt: indices {}{} (variant {g}: {})",
             spread.len(),
             shown.join(", "),
-            if spread.len() > shown.len() { ", …" } else { "" },
+            if spread.len() > shown.len() {
+                ", …"
+            } else {
+                ""
+            },
             first.trim_start_matches("note: ")
         );
     }
@@ -357,7 +361,11 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                 panic!("injected panic in a sweep worker (LATDYN_FAULT_PANIC=worker)");
             }
         };
-        match resume {
+        // a panic outside the variants (they catch their own) is a bug in the sweep's
+        // own code: the file is left marked interrupted (its writer's drop) and
+        // `--resume` completes it, and `--json` still gets its object (until session 47
+        // stdout stayed empty; a probe)
+        let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match resume {
             Some((writer, rows)) => {
                 ensemble::run_resume(&c, &prepared, &stop, &progress, &stage, writer, &rows)
             }
@@ -371,6 +379,37 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                 target,
                 verify_chosen.as_deref(),
             ),
+        }));
+        match ran {
+            Ok(r) => r,
+            Err(payload) => {
+                let message = format!(
+                    "internal error: {} (this is a bug in latdyn; please report it); the \
+                     sweep stopped{}",
+                    crate::panic_text(payload.as_ref()),
+                    c.output
+                        .as_ref()
+                        .map(|p| format!(
+                            ", {} is marked interrupted and `sweep --resume` completes it",
+                            p.display()
+                        ))
+                        .unwrap_or_default()
+                );
+                if args.model.json {
+                    let v = serde_json::json!({
+                        "status": "internal_error",
+                        "message": message,
+                        "variants": [],
+                        "wall_s": t_prepare.elapsed().as_secs_f64(),
+                        "backend": stage.backend,
+                        "precision": stage.precision,
+                        "threads": c.threads,
+                    });
+                    emit(&format!("{v}\n"))?;
+                }
+                // the panic hook has printed the error line
+                return Err(fail(EXIT_INTERNAL, String::new()));
+            }
         }
     }
     .map_err(|e| anyhow!("{e}"))?;
