@@ -565,6 +565,30 @@ fn stall(
              converge from its reference shape, so the loads (or gravity) are likely far \
              beyond what it carries, or a stiffness far too small; check their magnitudes"
         ),
+        // converged here, and `diagnose` found the tangent neither singular nor
+        // indefinite: what stopped the steps lies beyond this state, not in the tolerance
+        // (a column twisted by a tip torque on 4 elements stalled at 0.8 "residual
+        // 8.5e-14 ... tol = 1e-8; a tolerance below the model's round-off"; a probe,
+        // session 47)
+        Ok(info) if val <= model.solver.tol * info.force_scale => {
+            let element = crate::assembly::largest_deformation_angle(model, s)
+                .filter(|d| d.angle > crate::assembly::DEFORMATION_ANGLE_WARN)
+                .map(|d| {
+                    format!(
+                        "; element {} of beam `{}` ({} elements) is already turned {:.3} rad \
+                         from its chord here, beyond its small-deformation range: more \
+                         elements on that beam may pass",
+                        d.index_in_beam, d.beam, d.beam_elements, d.angle
+                    )
+                })
+                .unwrap_or_default();
+            format!(
+                "; the equilibrium at this load factor is converged and its stiffness is \
+                 neither singular nor unstable, but Newton converged at no load step beyond \
+                 it down to {MIN_LOAD_STEP:e} of the load: the path turns too sharply there \
+                 (a snap, a bifurcation), which `statics --path` follows{element}"
+            )
+        }
         Ok(_) => "; a tolerance below the model's round-off cannot be reached".to_string(),
     };
     StaticsError::NoConvergence {
