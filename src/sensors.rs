@@ -143,14 +143,19 @@ pub fn sample_into(
             &model.elem_data[*element],
             &elem_state(*element),
             *xi,
+            model.elements[*element].arc,
         )),
         SensorKind::SectionComponent {
             element,
             xi,
             component,
         } => out.push(
-            element::section_forces(&model.elem_data[*element], &elem_state(*element), *xi)
-                [*component],
+            element::section_forces(
+                &model.elem_data[*element],
+                &elem_state(*element),
+                *xi,
+                model.elements[*element].arc,
+            )[*component],
         ),
         SensorKind::HingeAngle { hinge } => {
             let d = model.hinges[*hinge].dof;

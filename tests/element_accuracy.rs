@@ -279,14 +279,14 @@ fn bend45_sections(n: usize) -> latdyn::model::Model {
 
 #[test]
 fn section_forces_are_estimated_at_first_order_and_a_zero_reaction_is_not_round_off_error() {
-    // Section forces on a curved (polygonal) mesh converge at first order in the element
-    // length: each element's sections stand in its chord's frame, half an element's angle
-    // from the arc's tangent at its ends (bend45's root axial force read 94.8, 48.5,
-    // 24.5, 12.3 N on 8 … 64 elements in session 28, when a deformed straight element's
-    // sections were read in its chord frame too), so their estimate is 2 |y_n −
-    // y_2n|; with the second-order 4/3 it read 2/3 of the truth. Against 256 elements
-    // each section sensor's estimate must be within 0.6 … 1.6 of its true error (the
-    // first-order term dominates at 8 elements; the tolerance leaves room for the next).
+    // Section forces converge at first order where a distributed load acts within the
+    // elements (an element's load beyond the station is not in them), so their estimate
+    // is the first-order 2 |y_n − y_2n|. Under nodal loads they converge at second order
+    // since session 47 (bend45's root axial force read 94.8, 48.5, 24.5, 12.3 N on 8 …
+    // 64 elements before, read in the chord frame; now its root reads the tip load
+    // exactly), where that estimate reads 1.5 times the truth (measured 1.50 at root,
+    // mid-span and end). Against 256 elements each section sensor's estimate must be
+    // within 0.6 … 1.6 of its true error.
     // The reaction along x is zero by equilibrium and computes as ~1e-11 N: measured
     // against the model's force scale it must read as nothing (it read 97 % against its
     // own round-off before), and the whole check must not warn on its account.
@@ -323,24 +323,27 @@ fn section_forces_are_estimated_at_first_order_and_a_zero_reaction_is_not_round_
 
 #[test]
 fn statics_warns_on_a_coarse_mesh_within_the_element_range_too() {
-    // The mesh is measured whether or not an element leaves its range: the 45° bend on
-    // 16 elements (every element within its range) with a section sensor at the root,
-    // whose section forces converge at first order on the polygonal arc (each element's
-    // section frame is its chord's, half an element's angle from the arc's tangent at its
-    // ends): 2.0 % estimated, warned as a coarse mesh naming the sensor; 64 elements
-    // read within 1 % (0.53 %). Until session 47 this test used the straight cantilever
-    // under P = 100 on 8 elements, whose root axial force then read 5.6 N for 0 in the
-    // root element's chord frame; in the section's own frame it reads 0.008 N, and a
-    // straight cantilever's statics within the element range stays under 1 %.
-    let section =
-        "\n[[sensors]]\nname = \"root_section\"\ntype = \"section\"\nbeam = \"bend\"\nat = 0\n";
+    // The mesh is measured whether or not an element leaves its range: the shipped
+    // cantilever under its own weight (no element near its range) with a section sensor
+    // at the root. An element carries its distributed load to its nodes, so within it the
+    // section forces miss the load on the part of the element beyond the station: they
+    // converge at first order (root shear −9.197 for −9.81 on 8 elements, −9.733 on 64):
+    // estimated 6.7 %, warned as a coarse mesh naming the sensor; 64 elements 0.79 %,
+    // not warned. (Until session 47 this test used bend45's root section, whose first
+    // order came from reading the sections in the chord frame and leaving the moment's
+    // turn out of the shear; they now read the tip load exactly.)
+    let extra =
+        "\n[environment]\ngravity = [0, 0, -9.81]\n\n[[sensors]]\nname = \"root_section\"\n\
+                 type = \"section\"\nbeam = \"beam\"\nat = 0\n";
     let with = |n: &str| {
         let path =
             std::env::temp_dir().join(format!("latdyn_coarse_{}_{n}.toml", std::process::id()));
-        let text =
-            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/models/bend45.toml"))
-                .unwrap();
-        std::fs::write(&path, text + section).unwrap();
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/models/cantilever.toml"
+        ))
+        .unwrap();
+        std::fs::write(&path, text + extra).unwrap();
         let v = latdyn_json(&[
             "statics",
             path.to_str().unwrap(),
@@ -351,7 +354,7 @@ fn statics_warns_on_a_coarse_mesh_within_the_element_range_too() {
         let _ = std::fs::remove_file(&path);
         v
     };
-    let v = with("16");
+    let v = with("8");
     let w = v["warnings"].as_array().unwrap();
     assert_eq!(w.len(), 1, "{v}");
     let w = w[0].as_str().unwrap();
@@ -360,7 +363,7 @@ fn statics_warns_on_a_coarse_mesh_within_the_element_range_too() {
         "{w}"
     );
     let est = v["mesh_error_by_sensor"]["root_section"].as_f64().unwrap();
-    assert!(est > 0.015 && est < 0.03, "{v}");
+    assert!(est > 0.04 && est < 0.1, "{v}");
     let v = with("64");
     assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
     assert!(v["mesh_error_estimate"].as_f64().unwrap() < 1e-2, "{v}");

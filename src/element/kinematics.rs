@@ -293,39 +293,39 @@ pub fn strain_energy(e: &ElemData, s: &ElemState) -> f64 {
 
 /// Section forces at station ξ ∈ [0, 1] in the section's own frame there: [N, Vy, Vz, T,
 /// My, Mz], each the resultant that the part beyond the section (towards node 2) exerts
-/// on the part before it. They are computed in the convected (chord) frame and turned
-/// into the section's, the chord frame turned by the Hermite section rotation θ(ξ) of
-/// [`section_fields`] (at an element end, exactly the node's frame). Until session 47
-/// they were reported in the chord frame: on a curved mesh the chord stands turned by
-/// half an element's angle from the section at each end, which mixed the components at
-/// O(h): a quarter circle's root under an out-of-plane tip load read T and My 1.2 % off
-/// on 64 elements (a probe). N = EA s/L0 with s the mean stretch ([`stretch`], tension positive),
-/// T = GJ (φx2 − φx1)/L0, My = EI_y κ_y and Mz = EI_z κ_z with κ = dθ/dx of the Hermite
-/// section rotation. Moment equilibrium of a slice, dM/dx + e_x × V = 0, gives
-/// Vy = −dMz/dx and Vz = dMy/dx. (Until session 28 Vy was dMz/dx: a tip force +F along y
-/// read Vy = −F while a force along z read Vz = +F and N, T, My, Mz were all resultants.)
-pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64) -> [f64; 6] {
+/// on the part before it. They are the element's own end loads carried to the station:
+/// the force f₂ the element takes from node 2 (its elastic forces are self-equilibrated,
+/// so f₂ = −f₁ throughout), and the moment m₂ + (x₂ − x(ξ)) × f₂ about the section's
+/// centre x(ξ) on the Hermite centreline. The section's frame is the chord frame turned
+/// by the Hermite section rotation θ(ξ) of [`section_fields`] (at an element end, exactly
+/// the node's frame) and, on an arc, further by the arc's own turn from the chord at ξ,
+/// (ξ − ½) `arc` (see [`crate::model::Element::arc`]).
+///
+/// Until session 47 they were N = EA s/L, T = GJ Δφx/L, M = EI κ and V = dM/dx in the
+/// chord frame (probes): the frame's turn mixed the components at O(h) (a cantilever's
+/// root shear under tension plus a transverse load read 36.2 for 40 on 8 elements; a
+/// quarter circle's root torque and moment 1.2 % off on 64), and V = dM/dx leaves out
+/// the moment vector's own turn along a twisted and bent element, which does not vanish
+/// under refinement: the 45° bend's root shear across its plane read −27.6 N on 128
+/// elements where equilibrium gives 0 (the tip force is 600 N), estimated 0.27 %. Now
+/// a clamped root reads the tip load and its moment exactly in statics.
+pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64, arc: Vec3) -> [f64; 6] {
+    use crate::math::{add, cross, mat_mul, mat_vec, rot_exp, scale, sub, transpose};
     let k = deformation(e, s);
-    let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
-    let p = &e.props;
-    let l = e.l0;
-    let c1 = -4.0 + 6.0 * xi;
-    let c2 = -2.0 + 6.0 * xi;
-    // the bending stiffnesses in the frame's axes, the section's turned by `SectionTurn`:
-    // Rᵀ diag(EIy, EIz) R = [[EIy + ½ΔEI α, ½ΔEI β], [½ΔEI β, EIz − ½ΔEI α]]
-    let t = SectionTurn::of(&k.phi);
-    let half_d = 0.5 * (p.eiy - p.eiz);
-    let (kyy, kyz, kzz) = (
-        p.eiy + half_d * t.alpha,
-        half_d * t.beta,
-        p.eiz - half_d * t.alpha,
-    );
-    let moments = |ky: f64, kz: f64| (kyy * ky + kyz * kz, kyz * ky + kzz * kz);
-    let (my, mz) = moments((c1 * fy1 + c2 * fy2) / l, (c1 * fz1 + c2 * fz2) / l);
-    let (dmy, dmz) = moments(6.0 * (fy1 + fy2) / (l * l), 6.0 * (fz1 + fz2) / (l * l));
-    let force = [p.ea * stretch(l, &k) / l, -dmz, dmy];
-    let moment = [p.gj * (fx2 - fx1) / l, my, mz];
-    // the section's frame: the chord frame turned by θ(ξ), as in `section_fields`
+    let f = super::force::internal_force(e, s);
+    let force = [f[6], f[7], f[8]];
+    let chord = add(e.chord0, sub(s.u2, s.u1));
+    // the section's centre relative to node 1, so the lever to node 2 is chord − it
+    let [centre, _, _] = section_fields(&k, [0.0; 3], chord, xi);
+    let moment = add([f[9], f[10], f[11]], cross(sub(chord, centre), force));
+    // the Hermite section rotation from the ends' exact rotation vectors (the angles
+    // `phi` are their sines' axes: at a node turned 0.18 rad from the chord the frame
+    // read from them missed the node's by 6.6e-4 rad, which showed as 0.4 N of the
+    // 45° bend's 600 N tip force in its root's axial force)
+    let (t1, t2) = node_frames(e, s);
+    let tct = transpose(&k.tc);
+    let [fx1, fy1, fz1] = crate::math::rot_log(&mat_mul(&tct, &t1));
+    let [fx2, fy2, fz2] = crate::math::rot_log(&mat_mul(&tct, &t2));
     let d1 = 1.0 - 4.0 * xi + 3.0 * xi * xi;
     let d2 = -2.0 * xi + 3.0 * xi * xi;
     let theta = [
@@ -333,9 +333,13 @@ pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64) -> [f64; 6] {
         d1 * fy1 + d2 * fy2,
         d1 * fz1 + d2 * fz2,
     ];
-    let turn = crate::math::transpose(&crate::math::rot_exp(theta));
-    let [n, vy, vz] = crate::math::mat_vec(&turn, force);
-    let [tx, my, mz] = crate::math::mat_vec(&turn, moment);
+    let frame = mat_mul(
+        &k.tc,
+        &mat_mul(&rot_exp(theta), &rot_exp(scale(arc, xi - 0.5))),
+    );
+    let to_section = transpose(&frame);
+    let [n, vy, vz] = mat_vec(&to_section, force);
+    let [tx, my, mz] = mat_vec(&to_section, moment);
     [n, vy, vz, tx, my, mz]
 }
 

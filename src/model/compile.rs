@@ -1477,6 +1477,8 @@ impl Compiler<'_> {
                 .as_ref()
                 .map(|c| self.vec3(c, &format!("{f}.arc_center")))
                 .transpose()?;
+            // the angle each element subtends times the arc's axis (global)
+            let mut arc_turn = [0.0; 3];
             let points: Vec<Vec3> = match centre {
                 None => (1..n)
                     .map(|k| add(p1, scale(sub(p2, p1), k as f64 / n as f64)))
@@ -1498,6 +1500,7 @@ impl Compiler<'_> {
                     }
                     let theta = norm(axb).atan2(dot(a, e));
                     let axis = normalize(axb);
+                    arc_turn = scale(axis, theta / n as f64);
                     (1..n)
                         .map(|k| add(c, mat_vec(&rot_axis(axis, theta * k as f64 / n as f64), a)))
                         .collect()
@@ -1557,12 +1560,14 @@ impl Compiler<'_> {
                     (None, Some(c)) => perpendicular(x, sub(c, scale(add(x0[a], x0[e]), 0.5))),
                     (None, None) => perpendicular(x, least_parallel_axis(x)),
                 };
+                let frame0 = from_cols(x, y, cross(x, y));
                 elements.push(Element {
                     n1: a,
                     n2: e,
                     props,
-                    frame0: from_cols(x, y, cross(x, y)),
+                    frame0,
                     beam: bi,
+                    arc: mat_vec(&transpose(&frame0), arc_turn),
                 });
                 elems.push(elements.len() - 1);
             }

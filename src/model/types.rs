@@ -35,6 +35,10 @@ pub struct Element {
     pub frame0: Mat3,
     /// index of the beam (spec `[[beams]]` entry) this element belongs to
     pub beam: usize,
+    /// On an arc (`arc_center`): the angle the element subtends times the arc's axis, in
+    /// the element's frame0 components; the arc's section at station ξ stands turned
+    /// from the chord by (ξ − ½) times it. Zero on a straight beam.
+    pub arc: Vec3,
 }
 
 /// A beam as the user wrote it: a chain of elements.
