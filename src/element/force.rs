@@ -174,16 +174,14 @@ pub(super) fn energy_partials<R: Real>(
     let four = R::cst(4.0);
     let n = R::lift(p.ea / l0) * stretch(l0, k);
     let g = n * R::lift(l0 / Real::cst(30.0));
-    // the section's axes turned by the mean twist (see `SectionTurn`)
+    // the section's axes turned (see `SectionTurn`)
     let st = SectionTurn::of(&k.phi);
     let dc = R::lift((p.eiy - p.eiz) / l0);
     let (ay, az) = (dc * st.alpha, dc * st.beta);
     let (y1, y2) = (two * fy1 + fy2, fy1 + two * fy2);
     let (z1, z2) = (two * fz1 + fz2, fz1 + two * fz2);
-    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
-    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
-    // ∂U/∂φx1 = ∂U/∂φx2 = ½ ∂U/∂ψ
-    let dpsi = R::cst(TURN_SHARE) * dc * (st.dalpha * (by - bz) + st.dbeta * st.syz);
+    // ∂U/∂φx1 = ∂U/∂φx2 = TURN_SHARE ∂U/∂ψ
+    let dpsi = R::cst(TURN_SHARE) * dc * (st.dalpha * (st.by - st.bz) + st.dbeta * st.syz);
     (
         [
             dpsi - t,
@@ -371,9 +369,9 @@ pub(super) fn tangent_into<R: Real>(
     let tw: [R; NDOF] = std::array::from_fn(|j| dp[3][j] - dp[0][j]);
     let gjtw = tw.map(|x| gj * x);
     let gn = n * c30;
-    // the section's axes turned by the mean twist (see `SectionTurn`): the bending
-    // stiffnesses Cy + ΔC α and Cz − ΔC α, the cross term ΔC β h between the planes, and
-    // the couplings with ψ, whose gradient is dψ = ½(∂φx1 + ∂φx2)
+    // the section's axes turned (see `SectionTurn`): the bending stiffnesses Cy + ΔC α
+    // and Cz − ΔC α, the cross term ΔC β h between the planes, and the couplings with ψ,
+    // whose gradient is dψ = TURN_SHARE (∂φx1 + ∂φx2)
     let st = SectionTurn::of(&phi);
     let dc = R::lift((p.eiy - p.eiz) / l0);
     let two = R::cst(2.0);
@@ -389,9 +387,7 @@ pub(super) fn tangent_into<R: Real>(
         dc * (st.dalpha * y2 + st.dbeta * z2),
         dc * (st.dbeta * y2 - st.dalpha * z2),
     ];
-    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
-    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
-    let hpp = dc * (st.ddalpha * (by - bz) + st.ddbeta * st.syz);
+    let hpp = dc * (st.ddalpha * (st.by - st.bz) + st.ddbeta * st.syz);
     // per bending plane (y: φy1, φy2; z: φz1, φz2) the rows that multiply ∂φ_a1 and ∂φ_a2
     let mut bend = [[z; NDOF]; 4];
     for (pl, c) in [

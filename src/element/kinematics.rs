@@ -129,15 +129,14 @@ pub fn kinematics<R: Real>(
 /// Bernoulli strain energy (paper eq. 21) of the deformation measures.
 #[inline]
 pub fn energy<R: Real>(p: &BeamProps<R::Base>, l0: R::Base, k: &Kin<R>) -> R {
-    let [fx1, fy1, fz1, fx2, fy2, fz2] = k.phi;
+    let [fx1, _, _, fx2, _, _] = k.phi;
     let half = R::cst(0.5);
     let tw = fx2 - fx1;
     // ∫ EI v''² dx / 2 for Hermite v with end slopes θ1, θ2 = (2EI/L)(θ1² + θ1θ2 + θ2²)
-    let bz = fz1 * fz1 + fz1 * fz2 + fz2 * fz2;
-    let by = fy1 * fy1 + fy1 * fy2 + fy2 * fy2;
+    let t = SectionTurn::of(&k.phi);
+    let (by, bz) = (t.by, t.bz);
     let s = stretch(l0, k);
     let two: R::Base = Real::cst(2.0);
-    let t = SectionTurn::of(&k.phi);
     half * R::lift(p.ea / l0) * s * s
         + half * R::lift(p.gj / l0) * tw * tw
         + R::lift(two * p.eiz / l0) * bz
@@ -190,7 +189,10 @@ pub struct SectionTurn<R> {
     /// d²α/dψ² = (12ψ² − 4)/(1 + ψ²)³, d²β/dψ² = (4ψ³ − 12ψ)/(1 + ψ²)³
     pub ddalpha: R,
     pub ddbeta: R,
-    /// S_yz = Σ_ij h_ij φy_i φz_j
+    /// the bending forms of the angles it was made from: b_y = φy1² + φy1 φy2 + φy2²,
+    /// b_z likewise, S_yz = Σ_ij h_ij φy_i φz_j
+    pub by: R,
+    pub bz: R,
     pub syz: R,
 }
 
@@ -213,6 +215,8 @@ impl<R: Real> SectionTurn<R> {
             dbeta: two * (one - p2) * id2,
             ddalpha: (R::cst(12.0) * p2 - four) * id3,
             ddbeta: (four * p2 - R::cst(12.0)) * psi * id3,
+            by: fy1 * fy1 + fy1 * fy2 + fy2 * fy2,
+            bz: fz1 * fz1 + fz1 * fz2 + fz2 * fz2,
             syz: two * fy1 * fz1 + fy1 * fz2 + fy2 * fz1 + two * fy2 * fz2,
         }
     }

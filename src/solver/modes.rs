@@ -821,14 +821,10 @@ pub fn bending_share(model: &Model, base: &State, parts: &[&[f64]]) -> Option<f6
             // in the section's axes, turned as at the base state (`SectionTurn`)
             let base_phi: [f64; 6] = std::array::from_fn(|c| 0.5 * (kp.phi[c] + km.phi[c]));
             let t = crate::element::SectionTurn::of(&base_phi);
-            let rate_phi: [f64; 6] = std::array::from_fn(|c| f[c]);
-            let syz = crate::element::SectionTurn::of(&rate_phi).syz;
-            let (by, bz) = (
-                f[1] * f[1] + f[1] * f[4] + f[4] * f[4],
-                f[2] * f[2] + f[2] * f[5] + f[5] * f[5],
-            );
-            let b = 2.0 / e.l0 * (pr.eiy * by + pr.eiz * bz)
-                + (pr.eiy - pr.eiz) / e.l0 * (t.alpha * (by - bz) + t.beta * syz);
+            // the rates' bending forms
+            let r = crate::element::SectionTurn::of(&std::array::from_fn(|c| f[c]));
+            let b = 2.0 / e.l0 * (pr.eiy * r.by + pr.eiz * r.bz)
+                + (pr.eiy - pr.eiz) / e.l0 * (t.alpha * (r.by - r.bz) + t.beta * r.syz);
             let other = 0.5 / e.l0 * (pr.ea * ds * ds + pr.gj * (f[3] - f[0]).powi(2));
             bend += b;
             total += b + other;
