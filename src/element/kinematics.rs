@@ -315,7 +315,8 @@ pub fn strain_energy(e: &ElemData, s: &ElemState) -> f64 {
 /// a clamped root reads the tip load and its moment exactly in statics.
 pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64, arc: Vec3) -> [f64; 6] {
     use crate::math::{add, cross, mat_mul, mat_vec, rot_exp, scale, sub, transpose};
-    let k = deformation(e, s);
+    let (t1, t2) = node_frames(e, s);
+    let k = kinematics(e.chord0, e.l0, s.u1, s.u2, &t1, &t2);
     let f = super::force::internal_force(e, s);
     let force = [f[6], f[7], f[8]];
     let chord = add(e.chord0, sub(s.u2, s.u1));
@@ -326,7 +327,6 @@ pub fn section_forces(e: &ElemData, s: &ElemState, xi: f64, arc: Vec3) -> [f64; 
     // `phi` are their sines' axes: at a node turned 0.18 rad from the chord the frame
     // read from them missed the node's by 6.6e-4 rad, which showed as 0.4 N of the
     // 45° bend's 600 N tip force in its root's axial force)
-    let (t1, t2) = node_frames(e, s);
     let tct = transpose(&k.tc);
     let [fx1, fy1, fz1] = crate::math::rot_log(&mat_mul(&tct, &t1));
     let [fx2, fy2, fz2] = crate::math::rot_log(&mat_mul(&tct, &t2));
