@@ -141,6 +141,10 @@ pub fn first_bending(model: &Model, sensor: (usize, usize), x: &[f64], dt: f64) 
             return out;
         }
     };
+    if let Some(note) = &rm.turning_loads {
+        out.warnings
+            .push(format!("first_bending_hz: the modal prior: {note}"));
+    }
     let Some(ke) = seen_elastic(model, &rm, sensor) else {
         largest(&mut out);
         out.warnings.push(format!(

@@ -104,6 +104,15 @@ fn modes_vary_errors_are_clear_and_exit_2() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("constant nonzero speed"), "{e}");
     assert!(o.stdout.is_empty());
+    // a model with no hub at all is told what --vary is for, not to start a speed
+    // range above 0 (session 48: `--vary EI` on the cantilever read that hint)
+    let o = latdyn(&["modes", "models/cantilever.toml", "--vary", "EI=50:100:3"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("Campbell diagram") && e.contains("--set EI=VALUE") && !e.contains("1e-6"),
+        "{e}"
+    );
     // a parameter the model does not have
     let o = latdyn(&[
         "modes",

@@ -66,17 +66,6 @@ pub fn solve_statics_until(
 /// load factor `lambda`: no kinetic energy, and at driven dofs the generalized forces the
 /// drivers supply there.
 fn static_sensors(model: &Model, s: &State, lambda: f64) -> (Vec<Vec<f64>>, f64, f64) {
-    let strain: f64 = model
-        .elem_data
-        .iter()
-        .enumerate()
-        .map(|(ie, e)| crate::element::strain_energy(e, &crate::joint::elem_state(model, s, ie)))
-        .sum();
-    let en = Energies {
-        kinetic: 0.0,
-        strain,
-        ..Energies::default()
-    };
     let mut gen = vec![0.0; model.dofs.len()];
     let info = Assembler::new(model).evaluate(
         model,
@@ -85,12 +74,44 @@ fn static_sensors(model: &Model, s: &State, lambda: f64) -> (Vec<Vec<f64>>, f64,
         &mut gen,
         None,
     );
+    let en = static_energies(model, s, lambda, &info);
     let vals = model
         .sensors
         .iter()
         .map(|sn| sensors::sample(model, s, &sn.kind, &en, &gen))
         .collect();
-    (vals, strain, info.force_scale)
+    (vals, en.strain, info.force_scale)
+}
+
+/// The energies of a static state at load factor `lambda`, from its assembly `info`:
+/// strain with the hinge springs (until session 48 the elements' alone: a beam on a
+/// spring hinge under a tip moment read 1.0 J of its 6.0), gravity's potential as a run
+/// reports it (−Σ m g·x, absolute; it read 0) at the applied share of gravity, and the
+/// work of the loads at their applied value on the way from the reference to the state
+/// (it read 0): a dead force's F·u is that work along any path, a dead moment's M·ψ (ψ
+/// the node's rotation vector) along a turn about a fixed axis. So the energy sensor's
+/// `balance` is the total potential energy, least at a stable equilibrium.
+pub(crate) fn static_energies(
+    model: &Model,
+    s: &State,
+    lambda: f64,
+    info: &crate::assembly::AssemblyInfo,
+) -> Energies {
+    let load_work: f64 = model
+        .loads
+        .iter()
+        .map(|l| {
+            let psi = crate::math::rot_log(&s.node_r[l.node]);
+            lambda * (crate::math::dot(l.force, s.node_u[l.node]) + crate::math::dot(l.moment, psi))
+        })
+        .sum();
+    Energies {
+        kinetic: 0.0,
+        strain: info.strain_energy,
+        gravity: lambda * info.gravity_energy,
+        load_work,
+        ..Energies::default()
+    }
 }
 
 /// The mesh error of a static solution, measured (see [`check_statics_mesh`]).

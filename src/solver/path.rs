@@ -22,7 +22,7 @@ use super::statics::{self, StaticsError, MAX_NEWTON_ANGLE};
 use crate::assembly::{Assembler, Coeffs};
 use crate::joint::{self, State};
 use crate::model::{DofMode, Model};
-use crate::sensors::{self, Energies};
+use crate::sensors;
 
 /// What the path parameter μ scales.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -390,25 +390,12 @@ impl Ctx<'_> {
     fn sample(&mut self, s: &mut State, mu: f64) -> Vec<Vec<f64>> {
         let model = self.model;
         self.place(s, mu);
-        let strain: f64 = model
-            .elem_data
-            .iter()
-            .enumerate()
-            .map(|(ie, e)| crate::element::strain_energy(e, &joint::elem_state(model, s, ie)))
-            .sum();
-        let en = Energies {
-            kinetic: 0.0,
-            strain,
-            ..Energies::default()
-        };
         let mut gen = vec![0.0; model.dofs.len()];
-        self.asm.evaluate(
-            model,
-            s,
-            Coeffs::statics(self.load_factor(mu)),
-            &mut gen,
-            None,
-        );
+        let lf = self.load_factor(mu);
+        let info = self
+            .asm
+            .evaluate(model, s, Coeffs::statics(lf), &mut gen, None);
+        let en = super::static_energies(model, s, lf, &info);
         model
             .sensors
             .iter()

@@ -377,6 +377,7 @@ pub(crate) fn rotating_modes(
     let count = args.count().min(rm.frequencies_hz.len());
     let f = &rm.frequencies_hz[..count];
     let mut warnings: Vec<String> = rm.steady_warning().into_iter().collect();
+    warnings.extend(rm.turning_loads.clone());
     warnings.extend(fewer_modes(
         args.count_arg,
         rm.frequencies_hz.len(),
@@ -457,6 +458,21 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
                 range.name
             ));
         }
+        // a model with no hub at all is told so; the speed hint is for a range that
+        // starts at rest (a probe in session 48 read it for `--vary EI` on a cantilever)
+        if rotating::constant_rate_hub(&m).is_none() {
+            return Err(anyhow!(
+                "--vary {}: `modes --vary` follows the rotating-frame modes of a hub over its \
+                 speed (a Campbell diagram), and no body of {} is driven at a constant \
+                 speed; for the modes at several values of `{}`, run `latdyn modes {} --set \
+                 {}=VALUE` per value",
+                range.name,
+                m.path,
+                range.name,
+                m.path,
+                range.name
+            ));
+        }
         let spin = rotating::find_spin(&m).ok_or_else(|| {
             anyhow!(
                 "--vary {}={v}: no body of {} turns at a constant nonzero speed; --vary \
@@ -479,7 +495,7 @@ pub(crate) fn modes_vary(args: &ModesArgs, range: &latdyn::ensemble::Range) -> a
         // too large for the dense matrices: refused by the analysis before it allocates
         let rm = rotating::rotating_modes_with_shapes(&m, spin, want)
             .with_context(|| format!("{}: rotating-frame modes at {}={v}", m.path, range.name))?;
-        if let Some(w) = rm.steady_warning() {
+        for w in rm.steady_warning().iter().chain(&rm.turning_loads) {
             eprintln!("warning: {}: {}={v}: {w}", m.path, range.name);
             warnings.push(format!("{}={v}: {w}", range.name));
         }
