@@ -293,3 +293,30 @@ fn gravity_across_the_spin_axis_is_averaged_over_a_revolution_and_said() {
         assert!(rm.instability_warning(3).is_none(), "g = {g:?}");
     }
 }
+
+/// A lag hinge at the spin axis with no spring: the rigid lag motion has zero frequency
+/// in the rotating frame. The rotating-frame JSON flags it as the static one does (until
+/// session 48 it had no `zero_frequency` field, and the round-off warning spoke only of
+/// a slow hub).
+#[test]
+fn a_free_lag_hinge_at_the_axis_is_flagged_zero_frequency_in_the_rotating_frame() {
+    let v = latdyn_json(&[
+        "modes",
+        "tests/models/lag_hinge_no_offset.toml",
+        "--count",
+        "3",
+        "--json",
+    ]);
+    assert_eq!(v["about"], "steady_rotation");
+    let z: Vec<bool> = v["zero_frequency"]
+        .as_array()
+        .expect("zero_frequency")
+        .iter()
+        .map(|b| b.as_bool().unwrap())
+        .collect();
+    assert_eq!(z, [true, false, false], "{v}");
+    assert!(v["warnings"][0]
+        .as_str()
+        .unwrap()
+        .contains("a motion of zero frequency"));
+}

@@ -366,8 +366,9 @@ impl RotatingModes {
         (!low.is_empty()).then(|| {
             format!(
                 "mode{} {} within the eigen-solver's round-off scale of zero in this model, \
-                 about {:.2e} Hz: a near-double root (the ±iΩ pair of a hinge on a slow \
-                 hub) is found only to within about that, so the frequency may be off by up \
+                 about {:.2e} Hz: a motion of zero frequency (a free hinge with nothing to \
+                 hold it in the rotating frame) or a near-double root (the ±iΩ pair of a \
+                 hinge on a slow hub) is found only to within about that, so the frequency may be off by up \
                  to as much (the shipped blade's rigid flap at Ω = 1e-4 rad/s reads \
                  3.6e-6 Hz for 1.6e-5; at 1e-3 rad/s it is within 3e-5 of Ω/2π)",
                 if low.len() > 1 { "s" } else { "" },

@@ -395,6 +395,9 @@ pub(crate) fn rotating_modes(
         let v = serde_json::json!({
             "frequencies_hz": f,
             "damping_ratios": &rm.damping[..count],
+            // as about a static state: within the eigen-solver's resolution of zero (a
+            // free lag hinge read 1.44e-5 Hz with no flag, session 48's probe)
+            "zero_frequency": f.iter().map(|x| x.abs() < rm.resolution_hz).collect::<Vec<_>>(),
             "mesh_error_estimates": mesh.estimates,
             "mesh_elements": mesh.elements(),
             "about": "steady_rotation",
