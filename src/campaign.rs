@@ -212,9 +212,7 @@ impl CampaignFile {
             path: path.to_path_buf(),
             message,
         };
-        if !path.is_file() {
-            return Err(err("no such file".into()));
-        }
+        crate::model::limits::regular_input(path).map_err(&err)?;
         let file =
             Reader::open(path).map_err(|e| err(format!("not a readable HDF5 file ({e})")))?;
         if file.root_attr(layout::attr::FORMAT).as_deref() != Some(layout::FORMAT) {

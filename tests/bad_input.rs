@@ -95,7 +95,29 @@ const CASES: &[(&str, usize, &str, &str)] = &[
         "100 × the Newton tolerance",
     ),
     ("syntax_error.toml", 25, "section", "invalid basic string"),
+    (
+        "control_character_in_comment.toml",
+        3,
+        "parameters",
+        "control character U+001B is not allowed",
+    ),
 ];
+
+/// A file that is not UTF-8 is located by line and column, not by its byte offset alone
+/// (session 48's probe: 433 fuzzed mutants read "invalid byte at offset 400").
+#[test]
+fn a_model_that_is_not_utf8_is_located_by_line_and_column() {
+    let d = std::env::temp_dir().join(format!("latdyn-utf8-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("latin1.toml");
+    std::fs::write(&p, b"[parameters]\nL = 1.0\n# na\xefve comment\n").unwrap();
+    let msg = load(&p, &[]).unwrap_err().to_string();
+    assert!(
+        msg.contains("latin1.toml") && msg.contains("line 3, column 5") && msg.contains("0xef"),
+        "{msg}"
+    );
+    std::fs::remove_dir_all(&d).ok();
+}
 
 #[test]
 fn every_broken_model_is_reported_with_file_line_and_field() {

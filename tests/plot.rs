@@ -628,3 +628,35 @@ fn a_divergent_branch_is_left_out_of_the_campbell_chart_with_a_note() {
         "{err}"
     );
 }
+
+/// `plot` and `merge` refuse an input that is not a regular file before opening it:
+/// opening a FIFO blocks until a writer comes (session 48's probe: `plot` hung on one),
+/// and `merge` called /dev/zero "no such file".
+#[test]
+fn plot_and_merge_refuse_a_fifo_or_a_device_as_input_without_blocking() {
+    let fifo = out("fifo.h5");
+    let _ = std::fs::remove_file(&fifo);
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: mkfifo is not available");
+        return;
+    }
+    let t0 = std::time::Instant::now();
+    let o = latdyn(&[
+        "plot",
+        s(&fifo),
+        "--sensor",
+        "tip",
+        "-o",
+        s(&out("fifo.svg")),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("is a FIFO, not a regular file"), "{e}");
+    let o = latdyn(&["merge", "/dev/zero", s(&fifo), "-o", s(&out("merged.h5"))]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("/dev/zero: is a character device"), "{e}");
+    assert!(t0.elapsed().as_secs() < 20, "took {:?}", t0.elapsed());
+    std::fs::remove_file(&fifo).ok();
+}

@@ -259,11 +259,33 @@ pub fn read_capped(path: &Path, cap: u64, what: &str) -> Result<String, String> 
         ));
     }
     String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        // where an editor shows it (a probe in session 48: the byte offset alone)
+        let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+        let start = bytes[..at]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |k| k + 1);
+        let column = 1 + String::from_utf8_lossy(&bytes[start..at]).chars().count();
         format!(
-            "cannot read {what}: not UTF-8 text (invalid byte at offset {})",
-            e.utf8_error().valid_up_to()
+            "cannot read {what}: not UTF-8 text: line {line}, column {column}: invalid byte \
+             0x{:02x} (byte offset {at}); save the file as UTF-8",
+            bytes[at]
         )
     })
+}
+
+/// An input file that must be a regular file, checked before it is opened: opening a FIFO
+/// blocks until a writer comes (`plot` of a FIFO hung, session 48), and a device or a
+/// directory is no results file. "no such file" where nothing is there.
+pub fn regular_input(path: &Path) -> Result<(), String> {
+    match std::fs::metadata(path) {
+        Ok(meta) if meta.is_file() => Ok(()),
+        Ok(meta) => Err(format!("is {}, not a regular file", file_kind(&meta))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err("no such file".into()),
+        Err(e) => Err(format!("cannot read it: {e}")),
+    }
 }
 
 fn file_kind(meta: &std::fs::Metadata) -> &'static str {
@@ -280,7 +302,7 @@ fn file_kind(meta: &std::fs::Metadata) -> &'static str {
     } else if t.is_socket() {
         "a socket"
     } else {
-        "not a regular file"
+        "a special file"
     }
 }
 

@@ -594,7 +594,21 @@ pub fn parse(text: &str, file: &str) -> Result<Spec, ModelError> {
 /// Turns a toml/serde error into a located one, recovering the field path (which toml
 /// does not expose) from the error's span in a generic parse of the same text.
 fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> ModelError {
-    let message = e.message().trim().replace('\n', "; ");
+    let mut message = e.message().trim().replace('\n', "; ");
+    if message.is_empty() {
+        // the toml crate gives no text for some lexer errors (a control character in a
+        // comment: a probe in session 48 read `FILE:1:4: ` and nothing else)
+        let at = e.span().map_or(0, |s| s.start);
+        message = match text.get(at..).and_then(|t| t.chars().next()) {
+            Some(c) if c.is_control() && c != '\t' => format!(
+                "control character U+{:04X} is not allowed in TOML, not even in a comment; \
+                 remove it",
+                c as u32
+            ),
+            Some(c) => format!("invalid TOML at `{}`", c.escape_debug()),
+            None => "invalid TOML (the file ends in the middle of a value)".into(),
+        };
+    }
     let Some(span) = e.span() else {
         return ModelError::file(file, None, message);
     };

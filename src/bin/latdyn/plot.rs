@@ -315,12 +315,7 @@ impl Campaign {
             path: path.to_path_buf(),
             message,
         };
-        if !path.exists() {
-            return Err(err("no such file".into()));
-        }
-        if path.is_dir() {
-            return Err(err("is a directory, not a results file".into()));
-        }
+        latdyn::model::limits::regular_input(path).map_err(&err)?;
         let reader = Reader::open(path)
             .map_err(|e| err(format!("not a readable HDF5 results file ({e})")))?;
         if !reader.has_dataset(layout::TIME) {
