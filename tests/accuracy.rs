@@ -1633,3 +1633,31 @@ fn an_accumulated_round_off_rotation_is_not_warned_as_a_time_error() {
         "{v}"
     );
 }
+
+/// A run whose span is whole output intervals but for a sliver (3e-8 of one) ends its
+/// last interval at t_end instead of adding a 1e-10 s interval, whose step could not be
+/// factored: the run failed (exit 3) until session 48 (a probe).
+#[test]
+fn a_last_output_interval_of_a_sliver_is_merged_into_the_one_before() {
+    let v = run_json(&["tests/models/output_interval_sliver.toml", "--set", "P=10"]);
+    assert_eq!(v["status"], "completed", "{v}");
+    let t: Vec<f64> = v["sensors"]["tip"]["t"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(t, [0.0, 0.0033333333, 0.0066666666, 0.01], "{v}");
+    assert!(v["sensors"]["tip"]["final"][2].as_f64().unwrap() != 0.0);
+    let m = latdyn::model::load(
+        std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/models/output_interval_sliver.toml"
+        )),
+        &[],
+    )
+    .unwrap();
+    let t = latdyn::solver::dynamics::output_times(&m);
+    assert_eq!(t.len(), 4);
+    assert_eq!(*t.last().unwrap(), 0.01);
+}

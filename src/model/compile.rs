@@ -2074,7 +2074,7 @@ impl Compiler<'_> {
         }
         let dt_out = if s.output_dt > 0.0 { s.output_dt } else { s.dt };
         // as in dynamics::output_times
-        let samples = (s.t_end / dt_out - 1e-9).ceil().max(1.0) + 1.0;
+        let samples = super::types::output_intervals(s.t_end, dt_out) as f64 + 1.0;
         let components: usize = sensors
             .iter()
             .map(|x| crate::sensors::components(&x.kind).len())

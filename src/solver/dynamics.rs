@@ -2654,8 +2654,13 @@ impl<'m> Integrator<'m> {
 pub fn output_times(model: &Model) -> Vec<f64> {
     let s = &model.solver;
     let dt_out = if s.output_dt > 0.0 { s.output_dt } else { s.dt };
-    let n = (s.t_end / dt_out - 1e-9).ceil().max(1.0) as usize;
-    (0..=n).map(|k| (k as f64 * dt_out).min(s.t_end)).collect()
+    let n = crate::model::output_intervals(s.t_end, dt_out);
+    (0..=n)
+        .map(|k| match k == n {
+            true => s.t_end,
+            false => (k as f64 * dt_out).min(s.t_end),
+        })
+        .collect()
 }
 
 /// Run the model from t = 0 to t_end; `on_sample` sees every output sample as it comes
