@@ -60,10 +60,13 @@ impl Default for Limits {
         Limits {
             // a generated model of 100 000 explicit nodes is about 10 MB of TOML
             model_bytes: 64 << 20,
-            // compiling and solving take about 22 kB per element (measured with `statics`
-            // and `run` on 100 000 and 200 000: 2.1 and 4.4 GB): about 22 GB at the limit,
-            // within this machine class's 24 GiB
-            elements: 1_000_000,
+            // compiling and solving take about 27 kB per element (`run` of the spin-up
+            // beam on 20 000 and 40 000 elements: 0.90 and 1.45 GB, session 48; a probe
+            // measured `statics` and `run` on 100 000 at 2.75 and 2.98 GB): at 1e6 that is
+            // 27 GB, more than this machine class's 24 GiB, and the allocator aborted a
+            // model under the limit. So the limit is also held to what the memory holds at
+            // `BYTES_PER_UNIT` (about 900 000 elements in 24 GiB)
+            elements: 1_000_000u64.min(memory_cap("elements").unwrap_or(u64::MAX)),
             // 6 per node plus bodies and hinges: the element limit with room to spare
             dofs: 10_000_000,
             // 8 bytes each in the file, and more in memory while a run keeps its history
@@ -138,15 +141,15 @@ impl Limits {
     }
 }
 
-/// Bytes of memory one unit of each memory-bound key takes at least, for
-/// [`memory_cap`]: lower bounds, so that the cap stops only what cannot fit (values a
-/// thousand times too large, which abort in the allocator), not a large model that
-/// might run with swap. An element 4 kB (compiling and solving take about 22 kB, see
-/// [`Limits::default`]); a coordinate 500 bytes; an output value 8 bytes (its f64); a
-/// variant 4 kB (a compiled model is far larger); a byte of a dense matrix or of a model
-/// file, itself.
+/// Bytes of memory one unit of each memory-bound key takes, for [`memory_cap`]. An
+/// element 28 kB, as measured (see [`Limits::default`]; until session 48 a lower bound
+/// of 4 kB, which let a default-limited model abort in the allocator); the others lower
+/// bounds, so that the cap stops only what cannot fit (values a thousand times too
+/// large), not a large model that might run with swap: a coordinate 500 bytes; an output
+/// value 8 bytes (its f64); a variant 4 kB (a compiled model is far larger); a byte of a
+/// dense matrix or of a model file, itself.
 const BYTES_PER_UNIT: [(&str, u64); 6] = [
-    ("elements", 4_000),
+    ("elements", 28_000),
     ("dofs", 500),
     ("output_values", 8),
     ("variants", 4_096),
@@ -194,7 +197,7 @@ fn default_of(key: &str) -> u64 {
 /// `value` is an f64 so that sizes beyond any integer type (1e300 samples) print as they are.
 /// A limit that `LATDYN_LIMITS` raised to the machine's memory ([`memory_cap`]) says so.
 pub fn exceeded(what: &str, value: f64, key: &str, limit: u64) -> String {
-    if limit != default_of(key) && memory_cap(key) == Some(limit) {
+    if memory_cap(key) == Some(limit) && (limit != default_of(key) || key == "elements") {
         let per = bytes_per_unit(key).unwrap_or(1);
         return format!(
             "{what}: {} exceeds what this machine's memory ({:.1} GiB) can hold, about \
