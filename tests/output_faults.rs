@@ -1150,6 +1150,42 @@ fn a_signal_while_run_compiles_its_model_ends_it_interrupted_with_exit_4() {
     no_temporaries(&dir);
 }
 
+/// A signal during a steady start's dense Newton ends the run promptly: the rotating
+/// cantilever on 400 elements spends about 30 s there, and until session 48 a TERM at
+/// 1.5 s ended it 31 s later (a probe; Slurm kills after 30 s).
+#[test]
+fn a_signal_during_a_steady_start_ends_the_run_within_seconds() {
+    let dir = scratch("signal_in_steady_start");
+    let path = dir.join("r.h5");
+    let child = spawn(latdyn(&[
+        "run",
+        "models/rotating_cantilever.toml",
+        "--set",
+        "elements=400",
+        "--set",
+        "t_end=0.001",
+        "--json",
+        "-o",
+        s(&path),
+    ]));
+    std::thread::sleep(Duration::from_millis(1500));
+    let t0 = std::time::Instant::now();
+    signal(&child, "TERM");
+    let out = finish(child, 120);
+    let took = t0.elapsed();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(4), "{err}");
+    assert!(
+        took < Duration::from_secs(10),
+        "stopped {took:?} after the signal"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("no JSON summary ({e}); stderr: {err}"));
+    assert_eq!(v["status"], "interrupted", "{v}");
+    assert_eq!(rust_summary(&path).0, "interrupted");
+    no_temporaries(&dir);
+}
+
 /// The same panic on two worker threads is one error line, and `--json` still gets its
 /// object (status "internal_error", the file named): until session 47 stdout stayed
 /// empty and the line was printed twice (a probe).

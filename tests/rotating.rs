@@ -106,7 +106,7 @@ fn a_steady_start_is_stretched_as_the_closed_form_and_stays_at_rest_in_the_rotat
     let m = latdyn::model::compile_str(&text, "rotating_cantilever.toml", &o).unwrap();
     let k = w / ea.sqrt();
     let want = (k.tan() / k - 1.0) + 1.0;
-    let s = latdyn::solver::rotating::steady_start(&m).unwrap();
+    let s = latdyn::solver::rotating::steady_start(&m, None).unwrap();
     let tip = m.node_names.iter().position(|n| n == "tip").unwrap();
     let got = 1.0 + s.node_u[tip][0];
     eprintln!("steady tip radius {got:.9} (closed form {want:.9})");

@@ -933,7 +933,12 @@ impl<'m> Integrator<'m> {
         slot: Option<Arc<Slot>>,
     ) -> Result<Integrator<'m>, DynamicsError> {
         let mut s = if model.initial_steady {
-            crate::solver::rotating::steady_start(model).map_err(DynamicsError::SteadyStart)?
+            crate::solver::rotating::steady_start(model, ctx.stop).map_err(|e| {
+                match e == crate::solver::rotating::STEADY_INTERRUPTED {
+                    true => DynamicsError::Interrupted { t: 0.0 },
+                    false => DynamicsError::SteadyStart(e),
+                }
+            })?
         } else {
             State::new(model)
         };

@@ -26,6 +26,8 @@ use crate::model::{ChainLink, DofMode, Model, NodeKin};
 
 /// Iteration limit of the steady-state solve.
 const STEADY_MAX_ITER: usize = 50;
+/// What a steady start stopped by its run's signal returns (see [`steady_start`]).
+pub const STEADY_INTERRUPTED: &str = "the steady start was interrupted";
 
 /// Why a steady state may not exist, said wherever one was not found.
 const DIVERGENCE_HINT: &str = "the speed may be past a divergence of the structure (an \
@@ -144,6 +146,9 @@ struct Frame<'a> {
     base: State,
     gen: Vec<f64>,
     r: Vec<f64>,
+    /// a run's stop flag (a signal): the steady start's dense Newton checks it between
+    /// columns of its matrices and between iterations
+    stop: Option<&'a std::sync::atomic::AtomicBool>,
 }
 
 impl Frame<'_> {
@@ -211,6 +216,13 @@ impl Frame<'_> {
         s
     }
 
+    /// Whether the run this frame serves was told to stop (the matrices built since are
+    /// incomplete; the caller checks before using them).
+    fn stopped(&self) -> bool {
+        self.stop
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
+    }
+
     fn residual(&mut self, xi: &[f64], xid: &[f64], xidd: &[f64]) -> Vec<f64> {
         let s = self.state(xi, xid, xidd);
         let c = Coeffs::dynamic(0.0, 0.0, 0.0);
@@ -266,6 +278,9 @@ impl Frame<'_> {
         );
         let h = 1e-6;
         for j in 0..n {
+            if self.stopped() {
+                break;
+            }
             let mut p = z.clone();
             p[j] = h;
             let rp = self.inertial_residual(&p);
@@ -286,6 +301,9 @@ impl Frame<'_> {
         let mut mat = vec![0.0; n * n];
         let h = 1e-4;
         for j in 0..n {
+            if self.stopped() {
+                break;
+            }
             let mut p = z.clone();
             p[j] = h;
             let mut mneg = z.clone();
@@ -445,7 +463,7 @@ pub fn rotating_modes_with_shapes(
     // before the dense matrices (`sweep --frequency` comes here without the CLI's check)
     crate::solver::modes::check_dense_size(model.n_eq, true).map_err(LinalgError::Other)?;
     let (turned, turning_loads) = turning_loads_averaged(model, spin);
-    let (mut fr, iters, converged) = steady_frame(&turned, spin)?;
+    let (mut fr, iters, converged) = steady_frame(&turned, spin, None)?;
     let n = model.n_eq;
     let k = fr.stiffness();
     let c = fr.jacobian(Rate::Velocity);
@@ -556,7 +574,11 @@ fn turning_loads_averaged(
 /// The steady rotating state: Newton on the rotating-frame residual from the unstressed
 /// reference (see the comment inside), with the number of iterations taken and whether
 /// the residual met its tolerance.
-fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bool), LinalgError> {
+fn steady_frame<'a>(
+    model: &'a Model,
+    spin: SteadySpin,
+    stop: Option<&'a std::sync::atomic::AtomicBool>,
+) -> Result<(Frame<'a>, usize, bool), LinalgError> {
     // its Newton works on dense n×n matrices: `run` of the rotating cantilever with
     // 3 000 elements (`[initial] steady = true`) spent 40 minutes in it before the first
     // step, and 100 000 elements would abort on the allocation
@@ -575,6 +597,7 @@ fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bo
         base,
         gen: vec![0.0; model.dofs.len()],
         r: vec![0.0; n],
+        stop,
     };
     let z = vec![0.0; n];
     // Steady state: Newton on r(ξ) = 0, regularised by pseudo-transient continuation.
@@ -618,6 +641,9 @@ fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bo
     let mut converged = false;
     for it in 0..STEADY_MAX_ITER {
         iters = it;
+        if fr.stopped() {
+            return Err(LinalgError::Other(STEADY_INTERRUPTED.into()));
+        }
         let r = fr.residual(&z, &z, &z);
         let scale_f = {
             let s = fr.state(&z, &z, &z);
@@ -632,6 +658,9 @@ fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bo
         let res0 = *res0.get_or_insert(res);
         let mu = mu0 * (res / res0).min(1.0);
         let kt = fr.stiffness();
+        if fr.stopped() {
+            return Err(LinalgError::Other(STEADY_INTERRUPTED.into()));
+        }
         // Solved by an LU that rejects only zero pivots (`DenseLu`): K is graded (axial
         // rows EA/ℓ, a hinge's flap row Ω²·I), and on a hub barely turning the flap pivot
         // is legitimately far below n·ε·max|K|, where `dense_solve` would call it singular.
@@ -680,7 +709,15 @@ fn steady_frame(model: &Model, spin: SteadySpin) -> Result<(Frame<'_>, usize, bo
 /// centrifugal load applied as a step), whose ringing pumps the flap motion: the rotating
 /// cantilever at Ω̄ = 50 grew its tip flap 150× from the pulse's response, and its history
 /// then depended on every step's error.
-pub fn steady_start(model: &Model) -> Result<State, String> {
+///
+/// `stop` (a run's signal flag) ends the search early with [`STEADY_INTERRUPTED`]: its
+/// dense Newton on a fine mesh takes tens of seconds (the rotating cantilever on 400
+/// elements: a signal at 1.5 s ended the run 31 s later, past Slurm's 30 s grace, a
+/// probe in session 48).
+pub fn steady_start(
+    model: &Model,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+) -> Result<State, String> {
     let spin = constant_rate_hub(model).ok_or_else(|| {
         "a steady start needs a body rotation driven at a constant rate".to_string()
     })?;
@@ -688,8 +725,10 @@ pub fn steady_start(model: &Model) -> Result<State, String> {
         // a hub at rest: the unstressed reference is its steady state
         return Ok(State::new(model));
     }
-    let (fr, iters, converged) =
-        steady_frame(model, spin).map_err(|e| format!("steady rotation: {e}"))?;
+    let (fr, iters, converged) = steady_frame(model, spin, stop).map_err(|e| match e {
+        LinalgError::Other(m) if m == STEADY_INTERRUPTED => m,
+        e => format!("steady rotation: {e}"),
+    })?;
     if !converged {
         return Err(format!(
             "the steady rotation was not found: Newton did not converge in {} iterations; \
