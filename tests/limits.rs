@@ -419,3 +419,45 @@ fn limits_raised_past_the_machines_memory_refuse_instead_of_aborting() {
         assert!(out.stdout.is_empty(), "{args:?}: stdout not empty");
     }
 }
+
+/// `run --json` holds every sensor value in its JSON object, about 100 bytes each; one
+/// that cannot fit in the machine's memory is refused before the run (a probe in session
+/// 48 had it abort in the allocator under the default output limit on a small machine).
+/// Here the output limit is raised so that the values fit in memory as f64 but their JSON
+/// would take twice the memory.
+#[test]
+fn a_run_whose_json_would_not_fit_in_memory_is_refused_before_it_starts() {
+    let Some(mem) = latdyn::model::limits::memory_bytes() else {
+        eprintln!("skipped: the machine's memory is unknown");
+        return;
+    };
+    let m = latdyn::model::load(&root().join("models/pendulum.toml"), &[]).unwrap();
+    let per_sample: usize = m
+        .sensors
+        .iter()
+        .map(|x| latdyn::sensors::components(&x.kind).len() + 1)
+        .sum();
+    let samples = 2.0 * mem as f64 / 100.0 / per_sample as f64;
+    let dt = 1e-3;
+    let t_end = format!("t_end={}", (samples * dt).ceil());
+    let limit = format!(
+        "output_values={:e},steps=1e12",
+        (3.0 * samples * per_sample as f64).ceil()
+    );
+    let t0 = std::time::Instant::now();
+    let out = latdyn_env(
+        &[
+            "run",
+            "models/pendulum.toml",
+            "--set",
+            &t_end,
+            "--set",
+            "dt=1e-3",
+            "--json",
+        ],
+        &[("LATDYN_LIMITS", &limit)],
+    );
+    fails_with(&out, &["`--json` would hold", "-o FILE.h5"]);
+    assert!(out.stdout.is_empty());
+    assert!(t0.elapsed().as_secs() < 30, "{:?}", t0.elapsed());
+}

@@ -123,6 +123,41 @@ pub(crate) fn spread_note(m: &latdyn::model::Model) -> Option<String> {
 }
 
 /// `--accuracy` against the model's Newton tolerance (see `accuracy_floor`).
+/// Bytes of memory one output value takes in `run --json`: its f64 in the history and
+/// its node in the JSON tree (measured by a probe in session 48: 322 MB against 54 MB
+/// without `--json` at 3e6 values, 89 bytes more each).
+const JSON_BYTES_PER_VALUE: f64 = 100.0;
+
+/// `run --json` holds every sample of every sensor in its JSON object: at the
+/// `output_values` limit (1e8) that is about 10 GB, and a machine with less memory
+/// aborted in the allocator (a probe in session 48, under a 3 GB address limit). Refused
+/// before the run where the object would not fit in the machine's memory.
+fn check_json_size(m: &latdyn::model::Model) -> anyhow::Result<()> {
+    let Some(mem) = latdyn::model::limits::memory_bytes() else {
+        return Ok(());
+    };
+    let components: usize = m
+        .sensors
+        .iter()
+        .map(|x| latdyn::sensors::components(&x.kind).len() + 1)
+        .sum();
+    let values = latdyn::solver::dynamics::output_times(m).len() as f64 * components as f64;
+    let bytes = values * JSON_BYTES_PER_VALUE;
+    if bytes <= mem as f64 {
+        return Ok(());
+    }
+    Err(anyhow!(
+        "{}: `--json` would hold {} sensor values in memory, about {:.1} GB at {} bytes \
+         each, more than this machine's {:.1} GiB: write the histories to a file (`-o \
+         FILE.h5`, without `--json`) or sample less often (`[solver] output_dt`)",
+        m.path,
+        latdyn::model::limits::count(values),
+        bytes / 1e9,
+        JSON_BYTES_PER_VALUE,
+        mem as f64 / f64::from(1u32 << 30)
+    ))
+}
+
 pub(crate) fn check_accuracy(target: f64, m: &latdyn::model::Model) -> anyhow::Result<()> {
     use latdyn::model::compile::{accuracy_below_floor, accuracy_floor};
     if target < accuracy_floor(m.solver.tol) {
@@ -145,6 +180,9 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     if let Some(a) = args.accuracy {
         check_accuracy(a, &m)?;
         m.solver.accuracy = Some(a);
+    }
+    if args.model.json {
+        check_json_size(&m)?;
     }
     if let Some(note) = spread_note(&m) {
         eprintln!("{note}");
