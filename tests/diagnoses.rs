@@ -490,3 +490,26 @@ fn a_stall_beyond_a_converged_load_step_names_the_element_not_the_tolerance() {
         "{text}"
     );
 }
+
+/// The consistent start of a fine mesh whose stiffness alone is past the LU's condition
+/// limit names that cause, as statics does (the four-bar on 1 500 elements; until session
+/// 48 it asked "a coordinate with neither stiffness nor mass?", a probe).
+#[test]
+fn a_consistent_start_past_the_condition_limit_names_the_mesh_not_a_massless_coordinate() {
+    let out = latdyn(&[
+        "run",
+        "models/fourbar.toml",
+        "--set",
+        "elements=1500",
+        "--set",
+        "t_end=0.004",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("consistent_velocity")
+            && err.contains("condition estimate above")
+            && err.contains("fewer elements may solve it"),
+        "{err}"
+    );
+}

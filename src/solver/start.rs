@@ -197,10 +197,20 @@ async fn consistent_velocity(
         }
     }
     let mut lu = sys.new_lu();
+    // the cause named as statics names it: on a fine mesh the stiffness alone (unlike a
+    // step's matrix, which its mass regularises) is past the LU's condition limit (the
+    // four-bar on 1 500 elements, a probe in session 48, read "a coordinate with neither
+    // stiffness nor mass?")
     lu.factor(&a).map_err(|e| {
         format!(
             "the stiffness of the coordinates without an initial rate cannot be factored \
-             ({e}): a coordinate with neither stiffness nor mass?"
+             ({e}): it is singular to working precision (condition estimate above {:e}), \
+             as when a coordinate has neither stiffness nor mass, or in a model of {} \
+             coordinates whose stiffest and softest directions differ by more (many \
+             elements, or EA far above EI/L²): fewer elements may solve it, or start \
+             without `consistent_velocity`",
+            crate::linalg::SINGULAR_COND_LIMIT,
+            model.n_eq
         )
     })?;
     // K restricted to the solved equations, for K δ
