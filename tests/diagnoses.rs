@@ -513,3 +513,22 @@ fn a_consistent_start_past_the_condition_limit_names_the_mesh_not_a_massless_coo
         "{err}"
     );
 }
+
+/// A hinge given a rate with the members beyond it at rest: the velocity given has almost
+/// no kinetic energy (the end node's rotary inertia), so the strain-free start it implies
+/// carries far more; the warning says so as a ratio, not as a share of 1.8 million per
+/// cent (until session 48, a probe).
+#[test]
+fn a_hinge_rate_given_alone_is_warned_with_a_ratio_not_a_share_above_one() {
+    let out = latdyn(&["run", "tests/models/hinge_rate_members_at_rest.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.contains("the initial velocity strains the structure"))
+        .unwrap_or_else(|| panic!("not warned: {err}"));
+    assert!(
+        line.contains("times the kinetic energy given") && !line.contains('%'),
+        "{line}"
+    );
+}

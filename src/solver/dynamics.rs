@@ -2578,15 +2578,28 @@ impl<'m> Integrator<'m> {
             .consistent_start
             .filter(|c| !c.applied && c.kinetic_share > super::start::KINETIC_SHARE_WARN)
         {
+            // the share is the strain-free correction's kinetic energy over the given
+            // velocity's: a hinge given a rate with its members at rest gives almost none
+            // (its end node's rotary inertia), so the share can be far above 1, which read
+            // "1791399.94 % of its kinetic energy" (a probe in session 48)
+            let share = c.kinetic_share;
             st.notes.push(format!(
-                "the initial velocity strains the structure: {} of its kinetic energy is in \
-                 motions the members resist (a body or hinge given a rate, the members \
-                 attached to it left at rest?); they ring from t = 0, at frequencies the step \
-                 may not resolve; `[initial] consistent_velocity = true` starts them \
-                 strain-free, `= false` takes the velocity as intended",
-                match c.kinetic_share.is_finite() {
-                    true => format!("{:.2} %", 100.0 * c.kinetic_share),
-                    false => "all".to_string(),
+                "the initial velocity strains the structure: {} (a body or hinge given a \
+                 rate, the members attached to it left at rest?); they ring from t = 0, at \
+                 frequencies the step may not resolve; `[initial] consistent_velocity = \
+                 true` starts them strain-free, `= false` takes the velocity as intended",
+                match share {
+                    x if !x.is_finite() => "the velocity given carries no kinetic energy, \
+                         and the strain-free one does"
+                        .to_string(),
+                    x if x <= 1.0 => format!(
+                        "{:.2} % of its kinetic energy is in motions the members resist",
+                        100.0 * x
+                    ),
+                    x => format!(
+                        "the strain-free start it implies moves the members with {x:.3e} \
+                         times the kinetic energy given"
+                    ),
                 },
             ));
         }
