@@ -239,3 +239,39 @@ fn a_hinged_beam_tilted_or_pushed_from_hanging_finds_its_hanging_equilibrium() {
         );
     }
 }
+
+/// A straight beam hanging from a spherical joint: its twist about its own axis has no
+/// stiffness and the loads do no work along it, but every point's position is
+/// determined. `statics` gives the equilibrium with a note that the turn is neutral, and
+/// `modes` lists the turn at 0 Hz beside the swing in both planes, equal to the swing of
+/// the same beam on a one-axis hinge (computed here). Until session 48 both were refused
+/// as "the loads do not hold the model" (a probe).
+#[test]
+fn a_beam_hanging_from_a_spherical_joint_is_an_equilibrium_neutral_in_its_twist() {
+    let p = "tests/models/hanging_beam_spherical.toml";
+    let st = latdyn_json(&["statics", p, "--json"]);
+    let w = st["warnings"].as_array().unwrap();
+    assert!(
+        w.len() == 1 && w[0].as_str().unwrap().contains("neutral in a turn"),
+        "{st}"
+    );
+    let v = latdyn_json(&["modes", p, "--count", "3", "--json"]);
+    assert_eq!(
+        v["zero_frequency"],
+        serde_json::json!([true, false, false]),
+        "{v}"
+    );
+    let f = frequencies(&v);
+    // the same beam on a hinge about y: its swing in the x-z plane
+    let hinged = std::fs::read_to_string(p).unwrap().replace(
+        "[[supports]]\nnode = \"root\"\ntype = \"pinned\"\n",
+        "[[joints]]\nname = \"top\"\nnode = \"root\"\nbody = \"ground\"\ntype = \"hinge\"\naxis = [0, 1, 0]\n",
+    );
+    let h = write("hanging_hinged.toml", &hinged);
+    let vh = latdyn_json(&["modes", h.to_str().unwrap(), "--count", "1", "--json"]);
+    let swing = frequencies(&vh)[0];
+    assert!(
+        rel(f[1], swing) < 1e-9 && rel(f[2], swing) < 1e-9,
+        "{f:?} against {swing}"
+    );
+}

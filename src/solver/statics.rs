@@ -81,6 +81,13 @@ pub const NOT_HELD_AT_SOLUTION: &str = "the loads do not hold the model: the sti
 const FAR_SWING_HINT: &str = "; if the loads do hold it, but far from the reference (a hinged \
      member they swing through a large angle), start the model nearer that equilibrium";
 
+/// The equilibrium found holds every point, but members may turn about their own axes
+/// at no cost (see `solve_until`).
+pub const NEUTRAL_TURN: &str = "the equilibrium is neutral in a turn: a member can turn about \
+     its own axis with no stiffness and no work of the loads (a straight beam under a \
+     spherical joint), so the positions are determined but that turn is not; `modes` lists \
+     it at 0 Hz; a torsional spring or a hinge in place of the joint holds it";
+
 /// Largest angle change of one Newton iteration [rad].
 pub const MAX_NEWTON_ANGLE: f64 = 0.5;
 
@@ -363,16 +370,21 @@ pub fn solve_until(
             .evaluate(model, &asm, s, Coeffs::statics(1.0), true)
             .is_err()
         {
-            match free_motions(model, s, 1.0) {
-                Some(e) => return Err(e),
-                None if model.n_eq > MAX_DIAGNOSIS_DOFS => rep.warnings.push(
+            match free_motions_unless_turns(model, s, 1.0, true) {
+                // members that can turn about their own axes, with no stiffness and no
+                // load work along the turn (a straight beam under a spherical joint, a
+                // probe in session 48: refused as "not held" while its positions are
+                // determined): the equilibrium stands, its turn about those axes does not
+                Ok(true) => rep.warnings.push(NEUTRAL_TURN.to_string()),
+                Err(Some(e)) => return Err(e),
+                Ok(false) | Err(None) if model.n_eq <= MAX_DIAGNOSIS_DOFS => {}
+                Ok(false) | Err(None) => rep.warnings.push(
                     "the tangent stiffness at the equilibrium found is singular to working \
                      precision (a motion the loads do not hold, or stiffnesses too far apart \
                      to factor), and the model is too large to name its free motions: the \
                      equilibrium may not be the only one"
                         .to_string(),
                 ),
-                None => {}
             }
         }
     }
@@ -747,17 +759,65 @@ fn name_free_motions(
 /// is too large for the dense diagnosis. Path following uses it wherever the stiffness
 /// turns singular (at the start, or along the path when no step size passes).
 pub fn free_motions(model: &Model, s: &State, load_factor: f64) -> Option<StaticsError> {
+    free_motions_unless_turns(model, s, load_factor, false).err()?
+}
+
+/// [`free_motions`]; with `turns_allowed`, Ok(true) where every free motion only turns
+/// members about their own axes, moving no point (see [`turns_in_place`]).
+fn free_motions_unless_turns(
+    model: &Model,
+    s: &State,
+    load_factor: f64,
+    turns_allowed: bool,
+) -> Result<bool, Option<StaticsError>> {
     let n = model.n_eq;
     if n == 0 || n > MAX_DIAGNOSIS_DOFS {
-        return None;
+        return Err(None);
     }
     let (k, d) = scaled_tangent(model, s, load_factor);
-    let (ev, vecs) = crate::linalg::sym_eig(&k, n).ok()?;
+    let (ev, vecs) = crate::linalg::sym_eig(&k, n).map_err(|_| None)?;
     let scale = ev.iter().fold(0.0f64, |a, b| a.max(b.abs())).max(1e-300);
     let free: Vec<usize> = (0..n)
         .filter(|&j| ev[j].abs() <= FREE_MOTION_TOL * scale)
         .collect();
-    name_free_motions(model, &free, &vecs, &d, NOT_HELD_AT_SOLUTION, "")
+    if free.is_empty() {
+        return Ok(false);
+    }
+    let coords = |j: usize| -> Vec<f64> { (0..n).map(|i| d[i] * vecs[j * n + i]).collect() };
+    if turns_allowed && free.iter().all(|&j| turns_in_place(model, s, &coords(j))) {
+        return Ok(true);
+    }
+    Err(name_free_motions(
+        model,
+        &free,
+        &vecs,
+        &d,
+        NOT_HELD_AT_SOLUTION,
+        "",
+    ))
+}
+
+/// Whether a motion (by equation) moves no point of the model: the largest displacement
+/// it gives any node or body is below 1e-6 of its largest angle times the model's size.
+/// A straight member on a spherical joint turning about its own axis is such a motion: it
+/// has no stiffness and the loads do no work along it, yet the positions are determined.
+fn turns_in_place(model: &Model, s: &State, x: &[f64]) -> bool {
+    let Some((plus, minus, h)) = joint::poses_about(model, s, x) else {
+        return false;
+    };
+    let angle = x
+        .iter()
+        .zip(&model.rot_eq)
+        .filter(|(_, r)| **r)
+        .fold(0.0f64, |a, (v, _)| a.max(v.abs()));
+    let moved = (0..model.x0.len()).fold(0.0f64, |a, nd| {
+        let dx = crate::math::sub(
+            joint::node_position(model, &plus, nd),
+            joint::node_position(model, &minus, nd),
+        );
+        a.max(crate::math::norm(dx) / (2.0 * h))
+    });
+    angle > 0.0 && moved <= 1e-6 * angle * coord_scale(model)
 }
 
 /// The largest components of a free motion, by coordinate name, as shares of the largest.
