@@ -532,3 +532,25 @@ fn a_hinge_rate_given_alone_is_warned_with_a_ratio_not_a_share_above_one() {
         "{line}"
     );
 }
+
+/// A reference tangent past the LU's condition limit (the cantilever on 6 000 elements)
+/// fails alike at any load, so the solve diagnoses it after three first steps (full,
+/// half, quarter load) instead of halving 24 times at 25 shifted iterations each (75 s
+/// until session 48) and says why.
+#[test]
+fn an_ill_conditioned_reference_is_diagnosed_after_three_first_steps_not_twenty_four() {
+    let out = latdyn(&[
+        "statics",
+        "models/cantilever.toml",
+        "--set",
+        "elements=6000",
+        "--set",
+        "P=1",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("in 3 load steps") && err.contains("condition estimate above"),
+        "{err}"
+    );
+}
