@@ -373,11 +373,7 @@ pub fn solve_until(
                     // with no step carried, the residual of the last one tried, which
                     // Newton could not reduce (at λ = 0 it is zero and says nothing);
                     // after some, the one left at the last equilibrium (round-off)
-                    let tried = if rep.load_steps == 0 {
-                        (lambda + 2.0 * dl).min(1.0)
-                    } else {
-                        lambda
-                    };
+                    let tried = if rep.load_steps == 0 { target } else { lambda };
                     return Err(stall(model, &asm, &mut sys, s, (lambda, tried), &rep));
                 }
             }
@@ -594,10 +590,13 @@ fn stall(
         // nothing carried at all: round-off is not the reason (a gravity of 1e30 read
         // "residual 5.6e-279 ... a tolerance below the model's round-off")
         Ok(_) if lambda == 0.0 && rep.load_steps == 0 => format!(
-            "; Newton diverged from the start at every load step down to {MIN_LOAD_STEP:e} \
-             of the load: even that much deforms the structure too far for Newton to \
+            "; Newton diverged from the start at every load step down to {:.1e} of the \
+             load: even that much deforms the structure too far for Newton to \
              converge from its reference shape, so the loads (or gravity) are likely far \
-             beyond what it carries, or a stiffness far too small; check their magnitudes"
+             beyond what it carries, or a stiffness far too small; check their magnitudes",
+            // the smallest step tried (below `MIN_LOAD_STEP` after halving, a quarter of
+            // the load after `SHIFTED_TRIES`)
+            tried - lambda
         ),
         // converged here, and `diagnose` found the tangent neither singular nor
         // indefinite: what stopped the steps lies beyond this state, not in the tolerance
