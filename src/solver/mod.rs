@@ -89,7 +89,8 @@ fn static_sensors(model: &Model, s: &State, lambda: f64) -> (Vec<Vec<f64>>, f64,
 /// reports it (−Σ m g·x, absolute; it read 0) at the applied share of gravity, and the
 /// work of the loads at their applied value on the way from the reference to the state
 /// (it read 0): a dead force's F·u is that work along any path, a dead moment's M·ψ (ψ
-/// the node's rotation vector) along a turn about a fixed axis. So the energy sensor's
+/// the node's rotation vector) along a turn about a fixed axis of less than π (ψ wraps
+/// past it: a beam rolled into a full circle reads no work of its moment). So the energy sensor's
 /// `balance` is the total potential energy, least at a stable equilibrium.
 pub(crate) fn static_energies(
     model: &Model,
