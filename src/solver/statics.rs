@@ -819,7 +819,8 @@ fn free_motions_unless_turns(
 }
 
 /// Whether a motion (by equation) moves no point of the model: the largest displacement
-/// it gives any node or body is below 1e-6 of its largest angle times the model's size.
+/// it gives any node, body reference point or centre of mass is below 1e-6 of its
+/// largest angle times the model's size.
 /// A straight member on a spherical joint turning about its own axis is such a motion: it
 /// has no stiffness and the loads do no work along it, yet the positions are determined.
 fn turns_in_place(model: &Model, s: &State, x: &[f64]) -> bool {
@@ -831,13 +832,30 @@ fn turns_in_place(model: &Model, s: &State, x: &[f64]) -> bool {
         .zip(&model.rot_eq)
         .filter(|(_, r)| **r)
         .fold(0.0f64, |a, (v, _)| a.max(v.abs()));
-    let moved = (0..model.x0.len()).fold(0.0f64, |a, nd| {
+    let nodes = (0..model.x0.len()).fold(0.0f64, |a, nd| {
         let dx = crate::math::sub(
             joint::node_position(model, &plus, nd),
             joint::node_position(model, &minus, nd),
         );
         a.max(crate::math::norm(dx) / (2.0 * h))
     });
+    // a body's reference point and centre of mass count as points too (a body turning
+    // freely about an axis off its centre of mass is not determined)
+    let bodies = model
+        .bodies
+        .iter()
+        .enumerate()
+        .fold(0.0f64, |a, (b, body)| {
+            let at = |st: &State| {
+                let com = crate::math::mat_vec(&st.body_r[b], body.com);
+                [st.body_x[b], crate::math::add(st.body_x[b], com)]
+            };
+            let (p, m) = (at(&plus), at(&minus));
+            (0..2).fold(a, |a, k| {
+                a.max(crate::math::norm(crate::math::sub(p[k], m[k])) / (2.0 * h))
+            })
+        });
+    let moved = nodes.max(bodies);
     angle > 0.0 && moved <= 1e-6 * angle * coord_scale(model)
 }
 
