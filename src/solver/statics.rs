@@ -347,10 +347,6 @@ pub fn solve_until(
         // `SHIFTED_TRIES` such failures the solve goes to its diagnosis.
         if outcome.is_none() && used && rep.load_steps == 0 {
             shifted_failures += 1;
-            if shifted_failures >= SHIFTED_TRIES {
-                // halved below the smallest step just after: the diagnosis
-                dl = MIN_LOAD_STEP;
-            }
         }
         match outcome {
             Some(iters) => {
@@ -365,7 +361,7 @@ pub fn solve_until(
                 *s = saved;
                 rep.rejected_steps += 1;
                 dl *= 0.5;
-                if dl < MIN_LOAD_STEP {
+                if dl < MIN_LOAD_STEP || shifted_failures >= SHIFTED_TRIES {
                     joint::update_kinematics(model, s);
                     if let Some(e) = diagnose(model, s, lambda) {
                         return Err(e);

@@ -141,7 +141,10 @@ fn check_json_size(m: &latdyn::model::Model) -> anyhow::Result<()> {
         .iter()
         .map(|x| latdyn::sensors::components(&x.kind).len() + 1)
         .sum();
-    let values = latdyn::solver::dynamics::output_times(m).len() as f64 * components as f64;
+    let s = &m.solver;
+    let dt_out = if s.output_dt > 0.0 { s.output_dt } else { s.dt };
+    let samples = latdyn::model::output_intervals(s.t_end, dt_out) + 1;
+    let values = samples as f64 * components as f64;
     let bytes = values * JSON_BYTES_PER_VALUE;
     if bytes <= mem as f64 {
         return Ok(());
