@@ -346,6 +346,12 @@ impl CampaignFile {
         } else {
             vec![f64::NAN; nv]
         };
+        // written since session 49 (run's mesh twin)
+        let mesh = if file.has_dataset(layout::MESH_ERROR_ESTIMATE) {
+            col(layout::MESH_ERROR_ESTIMATE)?
+        } else {
+            vec![f64::NAN; nv]
+        };
         if [
             state.len(),
             message.len(),
@@ -374,6 +380,7 @@ impl CampaignFile {
                 energy_loss: loss[v],
                 time_error_estimate: tee[v],
                 time_error_before_first_lock: tee_lock[v],
+                mesh_error_estimate: mesh[v],
                 warnings: warnings[v].clone(),
             });
         }

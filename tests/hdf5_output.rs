@@ -102,6 +102,7 @@ fn write_campaign(path: &Path) {
             energy_loss: 4e-4,
             time_error_estimate: 3e-4,
             time_error_before_first_lock: 2e-4,
+            mesh_error_estimate: 5e-3,
             warnings: String::new(),
         },
     )
@@ -120,6 +121,7 @@ fn write_campaign(path: &Path) {
             energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
             time_error_before_first_lock: f64::NAN,
+            mesh_error_estimate: f64::NAN,
             warnings: "first line\nsecond line".into(),
         },
     )

@@ -474,6 +474,66 @@ fn sigterm_mid_run_keeps_the_samples_so_far_marked_interrupted() {
     no_temporaries(&dir);
 }
 
+/// A signal during `run`'s mesh check (after the run completed): exit 4 naming the check,
+/// the file complete with the run's samples, its variant completed and warned that the
+/// mesh error was not measured, and the JSON status `interrupted`.
+#[test]
+fn a_signal_during_the_mesh_check_keeps_the_completed_run_and_says_the_check_was_not_made() {
+    let dir = scratch("sigterm_mesh_check");
+    let path = dir.join("r.h5");
+    // 30 000 steps on 10 elements (seconds), then the twin on 20: twice as long
+    let child = spawn(latdyn(&[
+        "run",
+        "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
+        "--set",
+        "t_end=300",
+        "-o",
+        s(&path),
+        "--json",
+    ]));
+    // the run flushes its last sample before the check starts
+    common::wait_until(120, "the run's last sample on disk", || {
+        path.exists()
+            && rust_hdf5::H5File::open(&path)
+                .ok()
+                .and_then(|f| f.dataset("sensors/tip_flap").ok())
+                .and_then(|d| d.read_raw::<f64>().ok())
+                .is_some_and(|x| x.last().is_some_and(|v| v.is_finite()))
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    signal(&child, "TERM");
+    let out = finish(child, 60);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(4), "{err}");
+    assert!(err.contains("during the mesh check"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "interrupted", "{v}");
+    assert_eq!(v["mesh_error_estimate"], serde_json::Value::Null);
+    assert!(
+        v["warnings"]
+            .to_string()
+            .contains("mesh error not measured"),
+        "{v}"
+    );
+    let (status, state) = rust_summary(&path);
+    assert_eq!((status.as_str(), state.as_slice()), ("complete", &[2][..]));
+    let f = rust_hdf5::H5File::open(&path).unwrap();
+    let warnings = f
+        .dataset("status/warnings")
+        .unwrap()
+        .read_strings()
+        .unwrap();
+    assert!(
+        warnings[0].contains("mesh error not measured"),
+        "{warnings:?}"
+    );
+    let mesh = f.dataset("status/mesh_error_estimate").unwrap();
+    assert!(mesh.read_raw::<f64>().unwrap()[0].is_nan());
+    no_temporaries(&dir);
+}
+
 #[test]
 fn sigkill_mid_sweep_leaves_the_last_flush_valid_and_a_stale_lock_is_harmless() {
     let dir = scratch("sigkill_sweep");

@@ -188,6 +188,7 @@ pub const ENERGY_GROWTH: &str = "status/energy_growth";
 pub const ENERGY_LOSS: &str = "status/energy_loss";
 pub const TIME_ERROR_ESTIMATE: &str = "status/time_error_estimate";
 pub const TIME_ERROR_BEFORE_FIRST_LOCK: &str = "status/time_error_before_first_lock";
+pub const MESH_ERROR_ESTIMATE: &str = "status/mesh_error_estimate";
 pub const WARNINGS: &str = "status/warnings";
 pub const GLOBAL_INDEX: &str = "status/global_index";
 pub const CAMPAIGN: &str = "campaign";

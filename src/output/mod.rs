@@ -42,6 +42,10 @@
 //! /status/time_error_before_first_lock float64 [V]: the same just before the variant's
 //!                          first hinge lock, NaN without a lock (files written before
 //!                          session 24 lack it; read as NaN)
+//! /status/mesh_error_estimate float64 [V]: estimated mesh error of the sensors relative
+//!                          to their range, measured by `run`'s mesh twin (README
+//!                          "Accuracy"); NaN where not measured (every sweep variant;
+//!                          files written before session 49 lack it, read as NaN)
 //! /status/warnings         str [V]: the variant's warnings, one per line (empty: none)
 //! /status/global_index     int64 [V]: index of each variant in the whole campaign
 //!                          (differs from the row index when the campaign is sharded)
@@ -358,6 +362,8 @@ pub struct VariantStatus {
     pub time_error_estimate: f64,
     /// the same just before the first hinge lock, NaN without a lock
     pub time_error_before_first_lock: f64,
+    /// estimated relative mesh error (`run`'s mesh twin), NaN where not measured
+    pub mesh_error_estimate: f64,
     /// warnings about the variant's numbers, one per line
     pub warnings: String,
 }
@@ -376,6 +382,7 @@ impl Default for VariantStatus {
             energy_loss: f64::NAN,
             time_error_estimate: f64::NAN,
             time_error_before_first_lock: f64::NAN,
+            mesh_error_estimate: f64::NAN,
             warnings: String::new(),
         }
     }
@@ -403,6 +410,7 @@ impl VariantStatus {
             energy_loss: stats.energy_loss.unwrap_or(f64::NAN),
             time_error_estimate: stats.time_error_estimate.unwrap_or(f64::NAN),
             time_error_before_first_lock: stats.time_error_before_first_lock.unwrap_or(f64::NAN),
+            mesh_error_estimate: f64::NAN,
             warnings,
         }
     }
@@ -1434,7 +1442,7 @@ impl CampaignWriter {
         write_strings(&st, leaf(layout::MESSAGE), &messages)
             .map_err(h5(&slash(layout::MESSAGE)))?;
         type Column = fn(&VariantStatus) -> f64;
-        let f64_columns: [(&str, Column); 6] = [
+        let f64_columns: [(&str, Column); 7] = [
             (layout::T_FAIL, |s| s.t_fail),
             (layout::WALL_S, |s| s.wall_s),
             (layout::ENERGY_GROWTH, |s| s.energy_growth),
@@ -1443,6 +1451,7 @@ impl CampaignWriter {
             (layout::TIME_ERROR_BEFORE_FIRST_LOCK, |s| {
                 s.time_error_before_first_lock
             }),
+            (layout::MESH_ERROR_ESTIMATE, |s| s.mesh_error_estimate),
         ];
         for (name, f) in f64_columns {
             let values: Vec<f64> = self.status.iter().map(f).collect();

@@ -405,6 +405,11 @@ pub(crate) struct RunArgs {
     /// is the first run's step, `dt_max` the largest, `dt_min` the smallest)
     #[arg(long, value_name = "TOL", value_parser = parse_accuracy)]
     pub(crate) accuracy: Option<f64>,
+    /// measure the run's mesh error by running it again with every beam's elements
+    /// doubled at the same step (about twice the run's cost again): `auto` where the
+    /// doubled model has at most 20 000 free coordinates, `always`, or `never`
+    #[arg(long, default_value = "auto", value_parser = ["auto", "always", "never"])]
+    pub(crate) mesh_check: String,
 }
 
 /// `latdyn plot FILE.h5 (--sensor S... | --x S --y S | --campbell P --derived D) -o OUT`

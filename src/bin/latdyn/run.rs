@@ -227,10 +227,27 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         latdyn::solver::dynamics::run_in(&m, &ctx, on_sample)
     };
     let wall = t0.elapsed().as_secs_f64();
-    let interrupted = matches!(
+    let mut interrupted = matches!(
         err,
         Some(latdyn::solver::dynamics::DynamicsError::Interrupted { .. })
     );
+    let mut warnings: Vec<String> = stats.warnings();
+    let mut mesh = None;
+    let mut mesh_interrupted = false;
+    if err.is_none() && out_err.is_none() {
+        // the samples are kept before the check, which takes about twice the run's time
+        if let Some(s) = sink.as_mut() {
+            if let Err(e) = s.flush() {
+                out_err = Some(e);
+            }
+        }
+        if out_err.is_none() {
+            let check = mesh_check(args, &m, &stats, &hist, &stage, &stop);
+            warnings.extend(check.warning);
+            mesh = check.error;
+            mesh_interrupted = check.interrupted;
+        }
+    }
     if let Some(s) = sink {
         let status = VariantStatus::of_run(
             match &err {
@@ -242,8 +259,12 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
             err.as_ref().map(|e| e.time()).unwrap_or(f64::NAN),
             &stats,
             wall,
-            stats.warnings().join("\n"),
+            warnings.join("\n"),
         );
+        let status = latdyn::output::VariantStatus {
+            mesh_error_estimate: mesh.as_ref().map_or(f64::NAN, |e| e.estimate),
+            ..status
+        };
         // after an output error the last good flush is what stays
         if out_err.is_none() {
             if let Err(e) = s.finish(&status) {
@@ -251,7 +272,6 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
             }
         }
     }
-    let warnings: Vec<String> = stats.warnings();
     for w in &warnings {
         eprintln!("warning: {}: {w}", m.path);
     }
@@ -259,8 +279,10 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         (Some(e), _) => ("output_failed", e.to_string()),
         (None, Some(e)) if interrupted => ("interrupted", e.to_string()),
         (None, Some(e)) => ("failed", e.to_string()),
+        (None, None) if mesh_interrupted => ("interrupted", MESH_INTERRUPTED.to_string()),
         (None, None) => ("completed", String::new()),
     };
+    interrupted |= mesh_interrupted && err.is_none();
     if args.model.json {
         let mut sensors = serde_json::Map::new();
         let summaries = latdyn::ensemble::summarize(&m, &hist);
@@ -324,6 +346,10 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 "strain_rate_left": c.strain_rate_left,
             })),
             "time_error_by_sensor": m.sensors.iter().map(|s| s.name.as_str()).zip(&stats.time_error_by_sensor).collect::<std::collections::BTreeMap<_, _>>(),
+            "mesh_error_estimate": mesh.as_ref().map(|e| e.estimate),
+            "mesh_error_by_sensor": mesh.as_ref().map(|e| m.sensors.iter().map(|s| s.name.as_str()).zip(&e.by_sensor).collect::<std::collections::BTreeMap<_, _>>()),
+            "mesh_elements": mesh.as_ref().map(|e| [e.elements.0, e.elements.1]),
+            "mesh_check_wall_s": mesh.as_ref().map(|e| e.wall_s),
             "warnings": warnings,
             "wall_s": wall,
             "status": status,
@@ -338,6 +364,13 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
             "run {}: {} steps ({} rejected, {} Newton iterations) in {:.3} s",
             m.name, stats.steps, stats.rejected_steps, stats.newton_iterations, wall
         );
+        if let Some(e) = &mesh {
+            eprintln!(
+                "mesh check: {} → {} elements at dt {:e} s, {} steps in {:.3} s; mesh error \
+                 estimate {:.3e} ({})",
+                e.elements.0, e.elements.1, e.dt, e.steps, e.wall_s, e.estimate, e.worst
+            );
+        }
         if let Some(tol) = m.solver.accuracy {
             eprintln!(
                 "accuracy {tol:e}: {} run(s), {} steps in all; the result's step {:e} s",
@@ -364,10 +397,121 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         return Err(fail(EXIT_OUTPUT, format!("{e}{kept}")));
     }
     match err {
+        None if mesh_interrupted => Err(fail(
+            EXIT_INTERRUPTED,
+            format!("{}: {MESH_INTERRUPTED}{written}", m.path),
+        )),
         Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
         Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
         None => Ok(()),
     }
+}
+
+/// The message of a run whose mesh check a signal stopped.
+const MESH_INTERRUPTED: &str = "interrupted (SIGINT, SIGTERM or SIGHUP) during the mesh \
+    check, after the run completed: the results are the run's, its mesh error is not measured";
+
+/// Free coordinates of the mesh twin up to which `--mesh-check auto` runs it. The twin
+/// costs about twice the run (its steps are as many, each with twice the elements and a
+/// factorization that grows a little faster); 20 000 coordinates is 1 600 beam elements
+/// where one large run of this size is already minutes, and the check would double
+/// hours. Above it the run warns that the error was not measured.
+const MESH_CHECK_AUTO_DOFS: usize = 20_000;
+
+/// What `run`'s mesh check gave: the measurement, the warning it raises (mesh too
+/// coarse, or not measured and why), and whether a signal stopped it.
+struct MeshCheck {
+    error: Option<latdyn::verify::RunMeshError>,
+    warning: Option<String>,
+    interrupted: bool,
+}
+
+/// The mesh check of a completed run of `m` (samples `hist`): its mesh twin
+/// (`latdyn::verify::mesh_twin_model`: every beam with twice its elements, the step the
+/// run used) run and compared sample by sample. Above `MESH_ERROR_WARN` it warns, naming
+/// the worst sensor component. Models without beams have no mesh; `--mesh-check never`
+/// skips it.
+fn mesh_check(
+    args: &RunArgs,
+    m: &Model,
+    stats: &latdyn::solver::dynamics::RunStats,
+    hist: &latdyn::solver::dynamics::History,
+    stage: &latdyn::ensemble::Stage,
+    stop: &std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> MeshCheck {
+    use latdyn::verify::MeshTwinSkip;
+    let mut out = MeshCheck {
+        error: None,
+        warning: None,
+        interrupted: false,
+    };
+    if m.elem_data.is_empty() || args.mesh_check == "never" {
+        return out;
+    }
+    let not_measured = |why: String| Some(format!("mesh error not measured: {why}"));
+    let dt = match m.solver.accuracy {
+        Some(_) => stats.accuracy_dt.unwrap_or(m.solver.dt),
+        None => m.solver.dt,
+    };
+    let twin = match latdyn::verify::mesh_twin_model(&args.model.model, &args.model.set, m, dt) {
+        Ok(t) => t,
+        Err(e) => {
+            out.warning = not_measured(e);
+            return out;
+        }
+    };
+    if args.mesh_check == "auto" && twin.n_eq > MESH_CHECK_AUTO_DOFS {
+        out.warning = not_measured(format!(
+            "twice the elements ({}) give {} free coordinates, above the {MESH_CHECK_AUTO_DOFS} \
+             the check runs by itself (it costs about twice the run again); \
+             `--mesh-check always` runs it",
+            twin.elements.len(),
+            twin.n_eq
+        ));
+        return out;
+    }
+    eprintln!(
+        "mesh check: running again on {} elements (the run's {} doubled) at dt {dt:e} s; \
+         `--mesh-check never` skips it",
+        twin.elements.len(),
+        m.elements.len()
+    );
+    let ctx = latdyn::solver::dynamics::RunContext {
+        stop: Some(stop.as_ref()),
+        symbolic: None,
+        eval: stage.make.as_ref().map(|make| make()),
+    };
+    match latdyn::verify::run_mesh_twin(m, hist, &twin, &ctx) {
+        Ok(e) => {
+            if e.estimate > latdyn::solver::MESH_ERROR_WARN {
+                let others = e
+                    .by_sensor
+                    .iter()
+                    .filter(|x| **x > latdyn::solver::MESH_ERROR_WARN)
+                    .count();
+                let others = match others {
+                    0 | 1 => String::new(),
+                    n => format!(", and {} other sensor(s) above 1 %", n - 1),
+                };
+                out.warning = Some(format!(
+                    "mesh too coarse: {} is estimated {:.2} % of its range off the converged \
+                     mesh (Richardson from its history on {} elements against {}){others}; \
+                     add elements",
+                    e.worst,
+                    100.0 * e.estimate,
+                    e.elements.1,
+                    e.elements.0
+                ));
+            }
+            out.error = Some(e);
+        }
+        Err(MeshTwinSkip::Interrupted) => {
+            out.interrupted = true;
+            out.warning = not_measured("a signal stopped the check".into());
+        }
+        Err(MeshTwinSkip::Failed(why)) => out.warning = not_measured(why),
+    }
+    out
 }
 
 /// CSV of the sensor histories: the header (time, then every sensor component).
