@@ -738,38 +738,51 @@ pub fn mesh_twin_model(
     Ok(r)
 }
 
-/// Runs the mesh twin `twin` ([`mesh_twin_model`]) of a completed run of `base` whose
-/// samples are `hist`, and measures the run's mesh error from the two histories
-/// ([`history_mesh_error`]).
-pub fn run_mesh_twin(
-    base: &Model,
-    hist: &dynamics::History,
-    twin: &Model,
-    ctx: &dynamics::RunContext<'_>,
-) -> Result<RunMeshError, MeshTwinSkip> {
+/// A mesh twin's run ([`run_twin`]): its samples, steps and wall time.
+pub struct TwinRun {
+    pub hist: dynamics::History,
+    pub steps: usize,
+    pub wall_s: f64,
+}
+
+/// Runs the mesh twin `twin` ([`mesh_twin_model`]); a panic, a failure or a stop is the
+/// reason it gave nothing.
+pub fn run_twin(twin: &Model, ctx: &dynamics::RunContext<'_>) -> Result<TwinRun, MeshTwinSkip> {
     let t0 = Instant::now();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         dynamics::run_in(twin, ctx, |_, _| {})
     }));
     let wall_s = t0.elapsed().as_secs_f64();
-    let (rhist, stats, err) = result.map_err(|_| {
+    let (hist, stats, err) = result.map_err(|_| {
         MeshTwinSkip::Failed("the run on twice the elements panicked (a bug in latdyn)".into())
     })?;
     match err {
-        Some(DynamicsError::Interrupted { .. }) => return Err(MeshTwinSkip::Interrupted),
-        Some(e) => {
-            return Err(MeshTwinSkip::Failed(format!(
-                "the run on twice the elements failed: {e}"
-            )))
-        }
-        None => {}
+        Some(DynamicsError::Interrupted { .. }) => Err(MeshTwinSkip::Interrupted),
+        Some(e) => Err(MeshTwinSkip::Failed(format!(
+            "the run on twice the elements failed: {e}"
+        ))),
+        None => Ok(TwinRun {
+            hist,
+            steps: stats.steps,
+            wall_s,
+        }),
     }
-    if rhist.t.len() != hist.t.len() {
+}
+
+/// The mesh error of a completed run of `base` (samples `hist`) from its twin's run
+/// ([`history_mesh_error`]).
+pub fn compare_twin(
+    base: &Model,
+    hist: &dynamics::History,
+    twin: &Model,
+    run: &TwinRun,
+) -> Result<RunMeshError, MeshTwinSkip> {
+    if run.hist.t.len() != hist.t.len() {
         return Err(MeshTwinSkip::Failed(
             "the run on twice the elements gave another number of samples".into(),
         ));
     }
-    let (by_sensor, worst) = history_mesh_error(base, hist, &rhist);
+    let (by_sensor, worst) = history_mesh_error(base, hist, &run.hist);
     let estimate = by_sensor
         .iter()
         .copied()
@@ -780,8 +793,8 @@ pub fn run_mesh_twin(
         worst,
         elements: (base.elements.len(), twin.elements.len()),
         dt: twin.solver.dt,
-        steps: stats.steps,
-        wall_s,
+        steps: run.steps,
+        wall_s: run.wall_s,
     })
 }
 

@@ -201,7 +201,26 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
     let mut n_samples = 0usize;
     let mut last_flush = std::time::Instant::now();
     let t0 = std::time::Instant::now();
-    let (hist, stats, err) = {
+    // the mesh twin of a fixed-step run runs alongside it (on the second core); under an
+    // accuracy target it needs the step the target chose, so it follows the run
+    let mut early = MeshCheck::default();
+    let twin = match m.solver.accuracy {
+        None => prepare_twin(args, &m, m.solver.dt, &mut early),
+        Some(_) => None,
+    };
+    let (hist, stats, err, twin_run, wall) = std::thread::scope(|scope| {
+        let handle = twin.as_ref().map(|t| {
+            announce_twin(t, &m, "alongside the run");
+            let (stop, stage) = (stop.as_ref(), &stage);
+            scope.spawn(move || {
+                let ctx = latdyn::solver::dynamics::RunContext {
+                    stop: Some(stop),
+                    symbolic: None,
+                    eval: stage.make.as_ref().map(|make| make()),
+                };
+                latdyn::verify::run_twin(t, &ctx)
+            })
+        });
         let on_sample = |t: f64, vals: &[Vec<f64>]| {
             let i = n_samples;
             n_samples += 1;
@@ -224,30 +243,56 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
             symbolic: None,
             eval: stage.make.as_ref().map(|make| make()),
         };
-        latdyn::solver::dynamics::run_in(&m, &ctx, on_sample)
-    };
-    let wall = t0.elapsed().as_secs_f64();
+        let (hist, stats, err) = latdyn::solver::dynamics::run_in(&m, &ctx, on_sample);
+        // the run's own time, not its wait for the twin
+        let wall = t0.elapsed().as_secs_f64();
+        if err.is_some() {
+            // nothing left to compare: end the twin (the run is over, the flag is free)
+            stop.store(true, Ordering::SeqCst);
+        } else if out_err.is_none() {
+            // the samples are kept while the twin still runs
+            if let Some(s) = sink.as_mut() {
+                if let Err(e) = s.flush() {
+                    out_err = Some(e);
+                }
+            }
+        }
+        let twin_run = handle.map(|h| {
+            h.join().unwrap_or_else(|_| {
+                Err(latdyn::verify::MeshTwinSkip::Failed(
+                    "the run on twice the elements panicked (a bug in latdyn)".into(),
+                ))
+            })
+        });
+        (hist, stats, err, twin_run, wall)
+    });
     let mut interrupted = matches!(
         err,
         Some(latdyn::solver::dynamics::DynamicsError::Interrupted { .. })
     );
     let mut warnings: Vec<String> = stats.warnings();
-    let mut mesh = None;
-    let mut mesh_interrupted = false;
+    let mut check = early;
     if err.is_none() && out_err.is_none() {
-        // the samples are kept before the check, which takes about twice the run's time
-        if let Some(s) = sink.as_mut() {
-            if let Err(e) = s.flush() {
-                out_err = Some(e);
+        match (twin, twin_run) {
+            (Some(t), Some(r)) => check.measured(&m, &hist, &t, r),
+            _ if m.solver.accuracy.is_some() => {
+                let dt = stats.accuracy_dt.unwrap_or(m.solver.dt);
+                if let Some(t) = prepare_twin(args, &m, dt, &mut check) {
+                    announce_twin(&t, &m, "after the run");
+                    let ctx = latdyn::solver::dynamics::RunContext {
+                        stop: Some(stop.as_ref()),
+                        symbolic: None,
+                        eval: stage.make.as_ref().map(|make| make()),
+                    };
+                    let r = latdyn::verify::run_twin(&t, &ctx);
+                    check.measured(&m, &hist, &t, r);
+                }
             }
+            _ => {}
         }
-        if out_err.is_none() {
-            let check = mesh_check(args, &m, &stats, &hist, &stage, &stop);
-            warnings.extend(check.warning);
-            mesh = check.error;
-            mesh_interrupted = check.interrupted;
-        }
+        warnings.extend(check.warning.clone());
     }
+    let (mesh, mesh_interrupted) = (check.error, check.interrupted);
     if let Some(s) = sink {
         let status = VariantStatus::of_run(
             match &err {
@@ -420,98 +465,98 @@ const MESH_CHECK_AUTO_DOFS: usize = 20_000;
 
 /// What `run`'s mesh check gave: the measurement, the warning it raises (mesh too
 /// coarse, or not measured and why), and whether a signal stopped it.
+#[derive(Default)]
 struct MeshCheck {
     error: Option<latdyn::verify::RunMeshError>,
     warning: Option<String>,
     interrupted: bool,
 }
 
-/// The mesh check of a completed run of `m` (samples `hist`): its mesh twin
-/// (`latdyn::verify::mesh_twin_model`: every beam with twice its elements, the step the
-/// run used) run and compared sample by sample. Above `MESH_ERROR_WARN` it warns, naming
-/// the worst sensor component. Models without beams have no mesh; `--mesh-check never`
-/// skips it.
-fn mesh_check(
-    args: &RunArgs,
-    m: &Model,
-    stats: &latdyn::solver::dynamics::RunStats,
-    hist: &latdyn::solver::dynamics::History,
-    stage: &latdyn::ensemble::Stage,
-    stop: &std::sync::Arc<std::sync::atomic::AtomicBool>,
-) -> MeshCheck {
-    use latdyn::verify::MeshTwinSkip;
-    let mut out = MeshCheck {
-        error: None,
-        warning: None,
-        interrupted: false,
-    };
-    if m.elem_data.is_empty() || args.mesh_check == "never" {
-        return out;
+impl MeshCheck {
+    /// Takes the twin's run `r` of a completed run of `m` (samples `hist`): the
+    /// measurement, warned above `MESH_ERROR_WARN` naming the worst sensor component, or
+    /// why it was not measured.
+    fn measured(
+        &mut self,
+        m: &Model,
+        hist: &latdyn::solver::dynamics::History,
+        twin: &Model,
+        r: Result<latdyn::verify::TwinRun, latdyn::verify::MeshTwinSkip>,
+    ) {
+        use latdyn::verify::MeshTwinSkip;
+        match r.and_then(|r| latdyn::verify::compare_twin(m, hist, twin, &r)) {
+            Ok(e) => {
+                if e.estimate > latdyn::solver::MESH_ERROR_WARN {
+                    let others = e
+                        .by_sensor
+                        .iter()
+                        .filter(|x| **x > latdyn::solver::MESH_ERROR_WARN)
+                        .count();
+                    let others = match others {
+                        0 | 1 => String::new(),
+                        n => format!(", and {} other sensor(s) above 1 %", n - 1),
+                    };
+                    self.warning = Some(format!(
+                        "mesh too coarse: {} is estimated {:.2} % of its range off the \
+                         converged mesh (Richardson from its history on {} elements against \
+                         {}){others}; add elements",
+                        e.worst,
+                        100.0 * e.estimate,
+                        e.elements.1,
+                        e.elements.0
+                    ));
+                }
+                self.error = Some(e);
+            }
+            Err(MeshTwinSkip::Interrupted) => {
+                self.interrupted = true;
+                self.warning = not_measured("a signal stopped the check");
+            }
+            Err(MeshTwinSkip::Failed(why)) => self.warning = not_measured(&why),
+        }
     }
-    let not_measured = |why: String| Some(format!("mesh error not measured: {why}"));
-    let dt = match m.solver.accuracy {
-        Some(_) => stats.accuracy_dt.unwrap_or(m.solver.dt),
-        None => m.solver.dt,
-    };
+}
+
+fn not_measured(why: &str) -> Option<String> {
+    Some(format!("mesh error not measured: {why}"))
+}
+
+/// The mesh twin of a run of `m` at step `dt` (`latdyn::verify::mesh_twin_model`: every
+/// beam with twice its elements), or None where there is none to run: a model without
+/// beams has no mesh, `--mesh-check never` skips it, and where it cannot be built or
+/// `auto` declines its size `check` gets the warning saying so.
+fn prepare_twin(args: &RunArgs, m: &Model, dt: f64, check: &mut MeshCheck) -> Option<Model> {
+    if m.elem_data.is_empty() || args.mesh_check == "never" {
+        return None;
+    }
     let twin = match latdyn::verify::mesh_twin_model(&args.model.model, &args.model.set, m, dt) {
         Ok(t) => t,
         Err(e) => {
-            out.warning = not_measured(e);
-            return out;
+            check.warning = not_measured(&e);
+            return None;
         }
     };
     if args.mesh_check == "auto" && twin.n_eq > MESH_CHECK_AUTO_DOFS {
-        out.warning = not_measured(format!(
+        check.warning = not_measured(&format!(
             "twice the elements ({}) give {} free coordinates, above the {MESH_CHECK_AUTO_DOFS} \
              the check runs by itself (it costs about twice the run again); \
              `--mesh-check always` runs it",
             twin.elements.len(),
             twin.n_eq
         ));
-        return out;
+        return None;
     }
+    Some(twin)
+}
+
+fn announce_twin(twin: &Model, m: &Model, when: &str) {
     eprintln!(
-        "mesh check: running again on {} elements (the run's {} doubled) at dt {dt:e} s; \
+        "mesh check: the run again on {} elements (its {} doubled) at dt {:e} s, {when}; \
          `--mesh-check never` skips it",
         twin.elements.len(),
-        m.elements.len()
+        m.elements.len(),
+        twin.solver.dt
     );
-    let ctx = latdyn::solver::dynamics::RunContext {
-        stop: Some(stop.as_ref()),
-        symbolic: None,
-        eval: stage.make.as_ref().map(|make| make()),
-    };
-    match latdyn::verify::run_mesh_twin(m, hist, &twin, &ctx) {
-        Ok(e) => {
-            if e.estimate > latdyn::solver::MESH_ERROR_WARN {
-                let others = e
-                    .by_sensor
-                    .iter()
-                    .filter(|x| **x > latdyn::solver::MESH_ERROR_WARN)
-                    .count();
-                let others = match others {
-                    0 | 1 => String::new(),
-                    n => format!(", and {} other sensor(s) above 1 %", n - 1),
-                };
-                out.warning = Some(format!(
-                    "mesh too coarse: {} is estimated {:.2} % of its range off the converged \
-                     mesh (Richardson from its history on {} elements against {}){others}; \
-                     add elements",
-                    e.worst,
-                    100.0 * e.estimate,
-                    e.elements.1,
-                    e.elements.0
-                ));
-            }
-            out.error = Some(e);
-        }
-        Err(MeshTwinSkip::Interrupted) => {
-            out.interrupted = true;
-            out.warning = not_measured("a signal stopped the check".into());
-        }
-        Err(MeshTwinSkip::Failed(why)) => out.warning = not_measured(why),
-    }
-    out
 }
 
 /// CSV of the sensor histories: the header (time, then every sensor component).
