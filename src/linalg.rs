@@ -93,7 +93,11 @@
 //! * The dense helpers allocate freely (they are meant for small problems).
 //!
 //! All faer calls in the sparse path use `Par::Seq`: parallelism belongs one level up
-//! (many variants factorised concurrently, one `SparseLu` each).
+//! (many variants factorised concurrently, one `SparseLu` each). The dense helpers set
+//! faer's global parallelism to `Par::Seq` too ([`dense_sequential`]): its default splits
+//! the work by the calling rayon pool's thread count, so a sweep's rotating-frame
+//! eigenvalue (`first_bending_eig_hz`) differed in its last bits between `--threads 2`
+//! and shards run on 1 and 3 threads (30-element rotating cantilever, session 49).
 //!
 //! # Timings (`cargo bench --bench linalg`, release, `Par::Seq`, median of repeats)
 //!
@@ -1228,6 +1232,7 @@ pub fn dense_solve(a: &[f64], n: usize, b: &mut [f64]) -> Result<(), LinalgError
     if n == 0 {
         return Ok(());
     }
+    dense_sequential();
     let amat = MatRef::from_row_major_slice(a, n, n);
     let lu = amat.partial_piv_lu();
     let amax = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -1261,6 +1266,7 @@ pub fn generalized_sym_eig(
     m: &[f64],
     n: usize,
 ) -> Result<(Vec<f64>, Vec<f64>), LinalgError> {
+    dense_sequential();
     check_square("generalized_sym_eig (K)", k, n)?;
     check_square("generalized_sym_eig (M)", m, n)?;
     if n == 0 {
@@ -1366,10 +1372,17 @@ pub fn jacobi_scale(a: &mut [f64], n: usize, d_of: impl Fn(f64) -> f64) -> Vec<f
     d
 }
 
+/// Makes faer's dense routines run on the calling thread: the same bits whatever the
+/// thread count of the pool they are called from (see the module documentation).
+fn dense_sequential() {
+    faer::set_global_parallelism(Par::Seq);
+}
+
 /// Symmetric eigendecomposition of the row-major n×n `a` (symmetrised as (A + Aᵀ)/2):
 /// eigenvalues ascending, eigenvectors orthonormal, column-major (column j is
 /// `u[j*n..(j+1)*n]`).
 pub fn sym_eig(a: &[f64], n: usize) -> Result<(Vec<f64>, Vec<f64>), LinalgError> {
+    dense_sequential();
     check_square("sym_eig", a, n)?;
     if n == 0 {
         return Ok((Vec::new(), Vec::new()));
@@ -1633,6 +1646,7 @@ pub fn general_eig(a: &[f64], n: usize) -> Result<Vec<(f64, f64)>, LinalgError> 
 /// (its scale, for the eigenvalues' round-off) reads it afterwards instead of balancing
 /// twice.
 pub fn general_eig_balancing(a: &mut [f64], n: usize) -> Result<Vec<(f64, f64)>, LinalgError> {
+    dense_sequential();
     check_square("general_eig", a, n)?;
     if n == 0 {
         return Ok(Vec::new());

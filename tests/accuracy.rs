@@ -188,6 +188,10 @@ fn every_shipped_scene_but_the_mini_mast_runs_without_a_warning_at_its_shipped_s
     // bend45 2e-4 s, tip 2.7e-4 (7.5e-3); lee_frame 1e-4 s, knee moment 5.4e-3 (6.1e-3).
     // The Mini-Mast bays still warn, truly: their locks ring the members, which no step
     // tried resolves (`a_time_error_after_a_hinge_lock_names_the_lock_as_its_likely_cause`).
+    // Since session 49 each run also measures its mesh error (a twin on twice the
+    // elements): the rotating cantilever (then 10 elements, 18 % estimated), the blade
+    // (10, 1.31 %) and the Lee frame (a step load, 7.4 %) were warned; they ship since
+    // on 30 and 20 elements and with the Lee frame's load ramped over 0.2 s.
     let names: Vec<_> = common::shipped_model_paths()
         .into_iter()
         .filter(|p| {
@@ -214,6 +218,9 @@ fn every_shipped_scene_but_the_mini_mast_runs_without_a_warning_at_its_shipped_s
             warnings(&v)
         );
         assert!(est < 1e-2, "{}: {est}", p.display());
+        let mesh = v["mesh_error_estimate"].as_f64();
+        eprintln!("{}: mesh error estimate {mesh:?}", p.display());
+        assert!(mesh.is_none_or(|x| x < 1e-2), "{}: {mesh:?}", p.display());
     }
 }
 
@@ -1095,6 +1102,10 @@ fn a_pulse_narrower_than_the_sampling_of_a_step_is_still_warned_and_refined() {
     // 7.88e-4 m at dt = 1e-5, 0.8 % of the range (8.9e-4 m); before the band caps 5 runs
     // down to 1.5e-5, estimate 0.035, 5.3 % of the range. Tolerance: 3× the request of 5 %, the factor within which
     // the estimate tracks the true error (README "Accuracy"); a missed pulse is 100 % off.
+    // On the 10 elements these figures were measured on (the shipped mesh until session
+    // 49), and without the mesh check: a 1 ms pulse rings modes no mesh here resolves
+    // (its root moment is 53 % off on 30 elements, estimated and warned), while this
+    // test is about the steps.
     let base = [
         "models/rotating_cantilever.toml",
         "--set",
@@ -1103,6 +1114,10 @@ fn a_pulse_narrower_than_the_sampling_of_a_step_is_still_warned_and_refined() {
         "dt=0.01",
         "--set",
         "t_pulse=1e-3",
+        "--set",
+        "elements=10",
+        "--mesh-check",
+        "never",
     ];
     for tp in ["1e-3", "1e-8"] {
         let set = format!("t_pulse={tp}");

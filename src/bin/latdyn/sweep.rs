@@ -520,6 +520,18 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         for w in &v.warnings {
             eprintln!("warning: verify: {w}");
         }
+    } else if args.verify.is_none()
+        && prepared
+            .models
+            .first()
+            .is_some_and(|m| !m.elem_data.is_empty())
+    {
+        // `run` measures one variant's mesh error by its twin; a sweep measures none
+        eprintln!(
+            "note: the variants' mesh error is not measured: `--verify K` runs K of them \
+             again on twice the elements at half the step, and `latdyn run` with a \
+             variant's --set measures that one's"
+        );
     }
     if args.model.json {
         let m0 = prepared.models.first();
