@@ -457,10 +457,11 @@ const MESH_INTERRUPTED: &str = "interrupted (SIGINT, SIGTERM or SIGHUP) during t
     check, after the run completed: the results are the run's, its mesh error is not measured";
 
 /// Free coordinates of the mesh twin up to which `--mesh-check auto` runs it. The twin
-/// costs about twice the run (its steps are as many, each with twice the elements and a
-/// factorization that grows a little faster); 20 000 coordinates is 1 600 beam elements
-/// where one large run of this size is already minutes, and the check would double
-/// hours. Above it the run warns that the error was not measured.
+/// has as many steps as the run, each with twice the elements: alongside a fixed-step
+/// run (second core) it adds about 1-2 times the run's wall time, after an accuracy-
+/// controlled one 2-3 times. 20 000 coordinates is 1 600 beam elements, where one run
+/// already takes minutes and the check would add as much again or more; above it the
+/// run warns that the error was not measured.
 const MESH_CHECK_AUTO_DOFS: usize = 20_000;
 
 /// What `run`'s mesh check gave: the measurement, the warning it raises (mesh too
