@@ -152,6 +152,32 @@ fn rel_scales(
         .collect()
 }
 
+/// The largest magnitude in each unit over the model's sensors (energies aside) in the
+/// base and the refined run's extremes: the floor of [`rel_diff`]'s scale.
+fn unit_magnitudes(
+    m: &Model,
+    base: &[SensorSummary],
+    refined: &[SensorSummary],
+) -> Vec<(&'static str, f64)> {
+    let mut magnitudes: Vec<(&'static str, f64)> = Vec::new();
+    for (s, (b, x)) in m.sensors.iter().zip(base.iter().zip(refined)) {
+        if matches!(s.kind, crate::model::SensorKind::Energy) {
+            continue;
+        }
+        for (c, u) in sensors::units(&s.kind).into_iter().enumerate() {
+            let mag = [b.min[c], b.max[c], x.min[c], x.max[c]]
+                .iter()
+                .filter(|v| v.is_finite())
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+            match magnitudes.iter_mut().find(|(w, _)| *w == u) {
+                Some((_, top)) => *top = top.max(mag),
+                None => magnitudes.push((u, mag)),
+            }
+        }
+    }
+    magnitudes
+}
+
 /// One verified (or not) variant.
 #[derive(Clone, Debug)]
 pub struct VariantCheck {
@@ -398,24 +424,7 @@ fn check_one(
         None => {}
     }
     let refined = crate::ensemble::summarize(&r, &hist);
-    // the largest magnitude in each unit over the model's sensors (energies aside), base
-    // and refined
-    let mut magnitudes: Vec<(&str, f64)> = Vec::new();
-    for (s, (b, x)) in m.sensors.iter().zip(o.sensors.iter().zip(&refined)) {
-        if matches!(s.kind, crate::model::SensorKind::Energy) {
-            continue;
-        }
-        for (c, u) in sensors::units(&s.kind).into_iter().enumerate() {
-            let mag = [b.min[c], b.max[c], x.min[c], x.max[c]]
-                .iter()
-                .filter(|v| v.is_finite())
-                .fold(0.0f64, |a, v| a.max(v.abs()));
-            match magnitudes.iter_mut().find(|(w, _)| *w == u) {
-                Some((_, top)) => *top = top.max(mag),
-                None => magnitudes.push((u, mag)),
-            }
-        }
-    }
+    let magnitudes = unit_magnitudes(m, &o.sensors, &refined);
     out.rel_diff = m
         .sensors
         .iter()
@@ -824,22 +833,7 @@ pub fn history_mesh_error(
     use crate::model::SensorKind;
     let base_sum = crate::ensemble::summarize(m, base);
     let ref_sum = crate::ensemble::summarize(m, refined);
-    let mut magnitudes: Vec<(&str, f64)> = Vec::new();
-    for (s, (b, x)) in m.sensors.iter().zip(base_sum.iter().zip(&ref_sum)) {
-        if matches!(s.kind, SensorKind::Energy) {
-            continue;
-        }
-        for (c, u) in sensors::units(&s.kind).into_iter().enumerate() {
-            let mag = [b.min[c], b.max[c], x.min[c], x.max[c]]
-                .iter()
-                .filter(|v| v.is_finite())
-                .fold(0.0f64, |a, v| a.max(v.abs()));
-            match magnitudes.iter_mut().find(|(w, _)| *w == u) {
-                Some((_, top)) => *top = top.max(mag),
-                None => magnitudes.push((u, mag)),
-            }
-        }
-    }
+    let magnitudes = unit_magnitudes(m, &base_sum, &ref_sum);
     let mut worst = (0.0f64, String::new());
     let by_sensor = m
         .sensors
