@@ -340,18 +340,14 @@ impl CampaignFile {
         let (t_fail, wall_s) = (col(layout::T_FAIL)?, col(layout::WALL_S)?);
         let (growth, loss) = (col(layout::ENERGY_GROWTH)?, col(layout::ENERGY_LOSS)?);
         let tee = col(layout::TIME_ERROR_ESTIMATE)?;
-        // written since session 24: a file from before reads as "no lock estimate"
-        let tee_lock = if file.has_dataset(layout::TIME_ERROR_BEFORE_FIRST_LOCK) {
-            col(layout::TIME_ERROR_BEFORE_FIRST_LOCK)?
-        } else {
-            vec![f64::NAN; nv]
+        // a column written since some session: a file from before reads NaN
+        let later_col = |name: &str| match file.has_dataset(name) {
+            true => col(name),
+            false => Ok(vec![f64::NAN; nv]),
         };
-        // written since session 49 (run's mesh twin)
-        let mesh = if file.has_dataset(layout::MESH_ERROR_ESTIMATE) {
-            col(layout::MESH_ERROR_ESTIMATE)?
-        } else {
-            vec![f64::NAN; nv]
-        };
+        // since session 24 ("no lock estimate") and 49 (run's mesh twin)
+        let tee_lock = later_col(layout::TIME_ERROR_BEFORE_FIRST_LOCK)?;
+        let mesh = later_col(layout::MESH_ERROR_ESTIMATE)?;
         if [
             state.len(),
             message.len(),

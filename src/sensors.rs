@@ -58,6 +58,18 @@ pub fn angle_components(kind: &SensorKind) -> Vec<bool> {
     }
 }
 
+/// |a − b| of one component; for a rotation-vector angle ([`angle_components`]) the
+/// difference is taken modulo 2π first (it jumps by 2π where the vector wraps at π).
+pub fn component_distance(a: f64, b: f64, angle: bool) -> f64 {
+    let d = a - b;
+    if angle {
+        (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+    } else {
+        d
+    }
+    .abs()
+}
+
 /// SI units of each component.
 pub fn units(kind: &SensorKind) -> Vec<&'static str> {
     match kind {

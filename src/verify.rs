@@ -629,63 +629,7 @@ fn percent(x: f64) -> String {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn select_spreads_evenly_with_first_and_last() {
-        let all: Vec<usize> = (0..10).collect();
-        assert_eq!(select(&all, 2).unwrap(), vec![0, 9]);
-        assert_eq!(select(&all, 3).unwrap(), vec![0, 5, 9]);
-        assert_eq!(select(&all, 1).unwrap(), vec![4]);
-        assert_eq!(select(&all, 10).unwrap(), all);
-        assert!(select(&all, 0).is_err());
-        assert!(select(&all, 11).is_err());
-        let shard: Vec<usize> = (0..10).step_by(3).collect(); // 0 3 6 9
-        assert_eq!(select(&shard, 2).unwrap(), vec![0, 9]);
-    }
-
-    #[test]
-    fn rel_diff_is_relative_to_the_range_and_ignores_round_off_at_rest() {
-        let s = |min: Vec<f64>, max: Vec<f64>| SensorSummary {
-            last: min.clone(),
-            min,
-            max,
-        };
-        // x moves over [−1, 1] (range 2); z stays at 1e-17 round-off against a 1 m scale
-        let b = s(vec![-1.0, 0.0], vec![1.0, 1e-17]);
-        let r = s(vec![-1.02, 0.0], vec![1.0, -1e-17]);
-        let d = rel_diff(&b, &r, &["m", "m"], false, &[]);
-        assert!((d[0] - 0.01).abs() < 1e-12, "{d:?}");
-        assert!(d[1] < 1e-9, "{d:?}");
-        // identical runs: 0, also for a sensor that is 0 throughout
-        let z = s(vec![0.0], vec![0.0]);
-        assert_eq!(rel_diff(&z, &z, &["m"], false, &[]), vec![0.0]);
-        // a refined run that blew up
-        let inf = s(vec![f64::NAN], vec![f64::NAN]);
-        assert_eq!(rel_diff(&z, &inf, &["m"], false, &[]), vec![f64::INFINITY]);
-    }
-
-    #[test]
-    fn an_energy_accounts_conserved_total_is_measured_against_the_energy_exchanged() {
-        let s = |min: Vec<f64>, max: Vec<f64>| SensorSummary {
-            last: min.clone(),
-            min,
-            max,
-        };
-        // kinetic over [0, 5] J; the total at −5.3 J drifts by 1e-5 J, by half that refined
-        let b = s(vec![0.0, -5.30001], vec![5.0, -5.3]);
-        let r = s(vec![0.0, -5.300005], vec![5.0, -5.3]);
-        let alone = rel_diff(&b, &r, &["J", "J"], false, &[]);
-        assert!(alone[1] > 0.4, "{alone:?}");
-        let shared = rel_diff(&b, &r, &["J", "J"], true, &[]);
-        assert!((shared[1] - 1e-6).abs() < 1e-9, "{shared:?}");
-        assert_eq!(shared[0], alone[0]);
-    }
-}
-
-/// What the mesh twin of a run ([`run_mesh_twin`]) measured: the run's histories against
+/// What the mesh twin of a run ([`run_twin`], [`compare_twin`]) measured: the run's histories against
 /// the same run on every beam meshed with [`crate::solver::MESH_REFINE`] times its
 /// elements at the same step.
 #[derive(Clone, Debug)]
@@ -792,10 +736,7 @@ pub fn compare_twin(
         ));
     }
     let (by_sensor, worst) = history_mesh_error(base, hist, &run.hist);
-    let estimate = by_sensor
-        .iter()
-        .copied()
-        .fold(0.0f64, |a, x| if x.is_nan() { a } else { a.max(x) });
+    let estimate = by_sensor.iter().copied().fold(0.0, f64::max);
     Ok(RunMeshError {
         estimate,
         by_sensor,
@@ -847,13 +788,9 @@ pub fn history_mesh_error(
             let mut diff = vec![0.0f64; nc];
             for (yb, yr) in base.values[k].iter().zip(&refined.values[k]) {
                 for c in 0..nc {
-                    let mut d = yr[c] - yb[c];
-                    if angle[c] && d.is_finite() {
-                        d = (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                            - std::f64::consts::PI;
-                    }
+                    let d = sensors::component_distance(yr[c], yb[c], angle[c]);
                     diff[c] = if d.is_finite() {
-                        diff[c].max(d.abs())
+                        diff[c].max(d)
                     } else {
                         f64::INFINITY
                     };
@@ -879,4 +816,60 @@ pub fn history_mesh_error(
         })
         .collect();
     (by_sensor, worst.1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn select_spreads_evenly_with_first_and_last() {
+        let all: Vec<usize> = (0..10).collect();
+        assert_eq!(select(&all, 2).unwrap(), vec![0, 9]);
+        assert_eq!(select(&all, 3).unwrap(), vec![0, 5, 9]);
+        assert_eq!(select(&all, 1).unwrap(), vec![4]);
+        assert_eq!(select(&all, 10).unwrap(), all);
+        assert!(select(&all, 0).is_err());
+        assert!(select(&all, 11).is_err());
+        let shard: Vec<usize> = (0..10).step_by(3).collect(); // 0 3 6 9
+        assert_eq!(select(&shard, 2).unwrap(), vec![0, 9]);
+    }
+
+    #[test]
+    fn rel_diff_is_relative_to_the_range_and_ignores_round_off_at_rest() {
+        let s = |min: Vec<f64>, max: Vec<f64>| SensorSummary {
+            last: min.clone(),
+            min,
+            max,
+        };
+        // x moves over [−1, 1] (range 2); z stays at 1e-17 round-off against a 1 m scale
+        let b = s(vec![-1.0, 0.0], vec![1.0, 1e-17]);
+        let r = s(vec![-1.02, 0.0], vec![1.0, -1e-17]);
+        let d = rel_diff(&b, &r, &["m", "m"], false, &[]);
+        assert!((d[0] - 0.01).abs() < 1e-12, "{d:?}");
+        assert!(d[1] < 1e-9, "{d:?}");
+        // identical runs: 0, also for a sensor that is 0 throughout
+        let z = s(vec![0.0], vec![0.0]);
+        assert_eq!(rel_diff(&z, &z, &["m"], false, &[]), vec![0.0]);
+        // a refined run that blew up
+        let inf = s(vec![f64::NAN], vec![f64::NAN]);
+        assert_eq!(rel_diff(&z, &inf, &["m"], false, &[]), vec![f64::INFINITY]);
+    }
+
+    #[test]
+    fn an_energy_accounts_conserved_total_is_measured_against_the_energy_exchanged() {
+        let s = |min: Vec<f64>, max: Vec<f64>| SensorSummary {
+            last: min.clone(),
+            min,
+            max,
+        };
+        // kinetic over [0, 5] J; the total at −5.3 J drifts by 1e-5 J, by half that refined
+        let b = s(vec![0.0, -5.30001], vec![5.0, -5.3]);
+        let r = s(vec![0.0, -5.300005], vec![5.0, -5.3]);
+        let alone = rel_diff(&b, &r, &["J", "J"], false, &[]);
+        assert!(alone[1] > 0.4, "{alone:?}");
+        let shared = rel_diff(&b, &r, &["J", "J"], true, &[]);
+        assert!((shared[1] - 1e-6).abs() < 1e-9, "{shared:?}");
+        assert_eq!(shared[0], alone[0]);
+    }
 }

@@ -132,6 +132,17 @@ fn rust_summary(path: &Path) -> (String, Vec<i32>) {
     (st, state)
 }
 
+/// The rotating cantilever's `tip_flap` samples in the file at `path` as they stand
+/// (None while it does not exist or cannot be read yet).
+fn tip_flap_on_disk(path: &Path) -> Option<Vec<f64>> {
+    rust_hdf5::H5File::open(path)
+        .ok()?
+        .dataset("sensors/tip_flap")
+        .ok()?
+        .read_raw::<f64>()
+        .ok()
+}
+
 fn no_temporaries(dir: &Path) {
     let left: Vec<String> = std::fs::read_dir(dir)
         .map(|d| {
@@ -495,12 +506,7 @@ fn a_signal_during_the_mesh_check_keeps_the_completed_run_and_says_the_check_was
     ]));
     // the run flushes its last sample before the check starts
     common::wait_until(120, "the run's last sample on disk", || {
-        path.exists()
-            && rust_hdf5::H5File::open(&path)
-                .ok()
-                .and_then(|f| f.dataset("sensors/tip_flap").ok())
-                .and_then(|d| d.read_raw::<f64>().ok())
-                .is_some_and(|x| x.last().is_some_and(|v| v.is_finite()))
+        tip_flap_on_disk(&path).is_some_and(|x| x.last().is_some_and(|v| v.is_finite()))
     });
     std::thread::sleep(Duration::from_millis(300));
     signal(&child, "TERM");
@@ -597,12 +603,7 @@ fn sigkill_mid_run_keeps_the_periodic_flush() {
     ]));
     // the first file (all NaN) comes at once; wait for a flush with samples in it
     common::wait_until(30, "a periodic flush with samples", || {
-        path.exists()
-            && rust_hdf5::H5File::open(&path)
-                .ok()
-                .and_then(|f| f.dataset("sensors/tip_flap").ok())
-                .and_then(|d| d.read_raw::<f64>().ok())
-                .is_some_and(|x| x.get(1).is_some_and(|v| v.is_finite()))
+        tip_flap_on_disk(&path).is_some_and(|x| x.get(1).is_some_and(|v| v.is_finite()))
     });
     signal(&child, "KILL");
     let out = finish(child, 30);

@@ -1145,16 +1145,7 @@ impl<'m> Integrator<'m> {
                     .iter()
                     .zip(ym.iter())
                     .zip(&self.te.angle[k])
-                    .map(|((a, b), ang)| {
-                        let d = b - a;
-                        if *ang {
-                            (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                                - std::f64::consts::PI
-                        } else {
-                            d
-                        }
-                        .abs()
-                    }),
+                    .map(|((a, b), ang)| sensors::component_distance(*b, *a, *ang)),
             );
         }
     }

@@ -276,15 +276,7 @@ pub fn check_statics_mesh_keeping(
             _ => 2,
         };
         let richardson = 1.0 / (1.0 - 0.5f64.powi(p));
-        let diff = |a: f64, b: f64, angle: bool| {
-            let d = a - b;
-            if angle {
-                (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
-            } else {
-                d
-            }
-            .abs()
-        };
+        let diff = sensors::component_distance;
         let change_of = |unit: &str| {
             (0..base.len())
                 .filter(|&o| units.get(o).copied() == Some(unit))

@@ -212,14 +212,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         let handle = twin.as_ref().map(|t| {
             announce_twin(t, &m, "alongside the run");
             let (stop, stage) = (stop.as_ref(), &stage);
-            scope.spawn(move || {
-                let ctx = latdyn::solver::dynamics::RunContext {
-                    stop: Some(stop),
-                    symbolic: None,
-                    eval: stage.make.as_ref().map(|make| make()),
-                };
-                latdyn::verify::run_twin(t, &ctx)
-            })
+            scope.spawn(move || latdyn::verify::run_twin(t, &run_context(stop, stage)))
         });
         let on_sample = |t: f64, vals: &[Vec<f64>]| {
             let i = n_samples;
@@ -238,11 +231,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 stop.store(true, Ordering::SeqCst);
             }
         };
-        let ctx = latdyn::solver::dynamics::RunContext {
-            stop: Some(stop.as_ref()),
-            symbolic: None,
-            eval: stage.make.as_ref().map(|make| make()),
-        };
+        let ctx = run_context(&stop, &stage);
         let (hist, stats, err) = latdyn::solver::dynamics::run_in(&m, &ctx, on_sample);
         // the run's own time, not its wait for the twin
         let wall = t0.elapsed().as_secs_f64();
@@ -266,7 +255,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         });
         (hist, stats, err, twin_run, wall)
     });
-    let mut interrupted = matches!(
+    let interrupted = matches!(
         err,
         Some(latdyn::solver::dynamics::DynamicsError::Interrupted { .. })
     );
@@ -279,12 +268,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 let dt = stats.accuracy_dt.unwrap_or(m.solver.dt);
                 if let Some(t) = prepare_twin(args, &m, dt, &mut check) {
                     announce_twin(&t, &m, "after the run");
-                    let ctx = latdyn::solver::dynamics::RunContext {
-                        stop: Some(stop.as_ref()),
-                        symbolic: None,
-                        eval: stage.make.as_ref().map(|make| make()),
-                    };
-                    let r = latdyn::verify::run_twin(&t, &ctx);
+                    let r = latdyn::verify::run_twin(&t, &run_context(&stop, &stage));
                     check.measured(&m, &hist, &t, r);
                 }
             }
@@ -327,7 +311,6 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         (None, None) if mesh_interrupted => ("interrupted", MESH_INTERRUPTED.to_string()),
         (None, None) => ("completed", String::new()),
     };
-    interrupted |= mesh_interrupted && err.is_none();
     if args.model.json {
         let mut sensors = serde_json::Map::new();
         let summaries = latdyn::ensemble::summarize(&m, &hist);
@@ -449,6 +432,18 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
         Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
         None => Ok(()),
+    }
+}
+
+/// A run's context: stopped by `stop`, its element stage made by `stage`.
+fn run_context<'a>(
+    stop: &'a std::sync::atomic::AtomicBool,
+    stage: &latdyn::ensemble::Stage,
+) -> latdyn::solver::dynamics::RunContext<'a> {
+    latdyn::solver::dynamics::RunContext {
+        stop: Some(stop),
+        symbolic: None,
+        eval: stage.make.as_ref().map(|make| make()),
     }
 }
 
