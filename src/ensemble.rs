@@ -38,6 +38,7 @@ use crate::solver::batch::{drive, panic_message, BatchCounts, Member, Slot};
 use crate::solver::dynamics::StageTimes;
 use crate::solver::dynamics::{self, DynamicsError};
 use crate::solver::linear::NewtonSystem;
+use crate::verify::MeshTwinSkip;
 
 #[derive(Debug, thiserror::Error)]
 pub enum EnsembleError {
@@ -657,6 +658,9 @@ pub struct Outcome {
     /// the same just before the first hinge lock (see
     /// `RunStats::time_error_before_first_lock`; None without one)
     pub time_error_before_first_lock: Option<f64>,
+    /// estimated relative mesh error from its mesh twin (`--mesh-check`, see
+    /// [`crate::verify::MeshSample`]; None where not measured)
+    pub mesh_error_estimate: Option<f64>,
     /// warnings about the variant's numbers, each naming its likely cause (energy
     /// balance, time error, `first_bending_hz: <kind>: ...` from `--frequency`, see
     /// crate::frequency)
@@ -680,6 +684,10 @@ pub struct CampaignRun {
     pub output_error: Option<OutputError>,
     /// what `--verify` measured (see [`run_verified_to`])
     pub verification: Option<crate::verify::Verification>,
+    /// what `--mesh-check` measured on its sampled variants of this shard (in the order
+    /// of [`crate::verify::MeshSample::variants`]), with the wall time of all twins;
+    /// None where no twin was to run
+    pub mesh: Option<(Vec<crate::verify::VariantMesh>, f64)>,
     /// calls of the element stage and the requests they carried (see
     /// [`crate::solver::batch`])
     pub batch: BatchCounts,
@@ -938,14 +946,26 @@ pub fn run_to(
     stage: &Stage,
     target: Option<OutputTarget>,
 ) -> Result<CampaignRun, EnsembleError> {
-    run_verified_to(c, p, stop, keep_history, progress, stage, target, None)
+    run_verified_to(
+        c,
+        p,
+        stop,
+        keep_history,
+        progress,
+        stage,
+        target,
+        None,
+        None,
+    )
 }
 
 /// [`run_to`], then, when `verify` names variants (global indices of this shard, see
 /// [`crate::verify::select`]), their refined runs on the same pool
 /// ([`crate::verify::run`]) once every variant has finished; what they measured is
 /// returned and written to the campaign file (`/verification`) before it is finished.
-/// Nothing is verified after an output error or an interruption.
+/// Nothing is verified after an output error or an interruption. Before that, the
+/// variants `mesh` samples get their mesh twins ([`crate::verify::measure_mesh`]), the
+/// same as `run` gives each run: their figures and warnings go to their rows.
 #[allow(clippy::too_many_arguments)]
 pub fn run_verified_to(
     c: &Campaign,
@@ -956,6 +976,7 @@ pub fn run_verified_to(
     stage: &Stage,
     target: Option<OutputTarget>,
     verify: Option<&[usize]>,
+    mesh: Option<&crate::verify::MeshSample>,
 ) -> Result<CampaignRun, EnsembleError> {
     let writer = match target {
         Some(target) => {
@@ -993,12 +1014,15 @@ pub fn run_verified_to(
         writer,
         None,
         verify,
+        mesh,
     )
 }
 
 /// `sweep --resume`: run the prepared variants (see [`prepare_rows`]) into `writer`, an
 /// existing campaign file reopened ([`CampaignWriter::reopen`]), variant `v` of `p` going
-/// to the file's row `rows[v]`; the file is finished as for [`run_to`].
+/// to the file's row `rows[v]`; the file is finished as for [`run_to`]. The variants of
+/// `mesh` among those run get their mesh twins, as in [`run_verified_to`].
+#[allow(clippy::too_many_arguments)]
 pub fn run_resume(
     c: &Campaign,
     p: &Prepared,
@@ -1007,6 +1031,7 @@ pub fn run_resume(
     stage: &Stage,
     writer: CampaignWriter,
     rows: &[usize],
+    mesh: Option<&crate::verify::MeshSample>,
 ) -> Result<CampaignRun, EnsembleError> {
     if rows.len() != p.models.len() {
         return Err(EnsembleError::Invalid(format!(
@@ -1025,6 +1050,7 @@ pub fn run_resume(
         Some(writer),
         Some(rows),
         None,
+        mesh,
     )
 }
 
@@ -1039,8 +1065,17 @@ fn run_core(
     writer: Option<CampaignWriter>,
     rows: Option<&[usize]>,
     verify: Option<&[usize]>,
+    mesh: Option<&crate::verify::MeshSample>,
 ) -> Result<CampaignRun, EnsembleError> {
     let nv = p.models.len();
+    // the positions (in `p`) of the variants whose mesh twin runs after the campaign:
+    // their histories are kept until then, with the step their run was made at
+    let sampled: Vec<bool> = p
+        .global_index
+        .iter()
+        .map(|g| mesh.is_some_and(|s| s.variants.contains(g)))
+        .collect();
+    let kept: Mutex<Vec<(usize, dynamics::History, f64)>> = Mutex::new(Vec::new());
     let writer = writer.map(Mutex::new);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let last_flush = Mutex::new(Instant::now());
@@ -1118,6 +1153,13 @@ fn run_core(
             }
         }
         let t_out = Instant::now();
+        if sampled[v] && state == VariantState::Completed {
+            kept.lock().unwrap_or_else(|p| p.into_inner()).push((
+                v,
+                hist.clone(),
+                stats.accuracy_dt.unwrap_or(m.solver.dt),
+            ));
+        }
         if let Some(w) = &writer {
             let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
             let st = VariantStatus::of_run(
@@ -1174,6 +1216,7 @@ fn run_core(
             energy_loss: stats.energy_loss,
             time_error_estimate: stats.time_error_estimate,
             time_error_before_first_lock: stats.time_error_before_first_lock,
+            mesh_error_estimate: None,
             warnings,
             history: keep_history.then_some(hist),
             panicked: panicked.is_some(),
@@ -1289,6 +1332,65 @@ fn run_core(
     let mut output_error = write_err.into_inner().unwrap_or_else(|p| p.into_inner());
     // the campaign's own state: a signal during the verification leaves it complete
     let stopped = stop.load(Ordering::SeqCst);
+    let mesh_report = match mesh {
+        Some(plan) if output_error.is_none() && !stopped => {
+            let t0 = Instant::now();
+            let mut kept = kept.into_inner().unwrap_or_else(|p| p.into_inner());
+            // campaign order, whatever order the variants ended in
+            kept.sort_by_key(|(v, _, _)| *v);
+            let measured: Vec<(usize, Result<crate::verify::RunMeshError, MeshTwinSkip>)> = pool
+                .install(|| {
+                    kept.par_iter()
+                        .map(|(v, hist, dt)| {
+                            let mut sets = c.base.clone();
+                            sets.extend(c.variants[p.global_index[*v]].iter().cloned());
+                            let ctx = dynamics::RunContext {
+                                stop: Some(stop),
+                                symbolic: None,
+                                eval: stage.make.as_ref().map(|make| make()),
+                            };
+                            let r = crate::verify::measure_mesh(
+                                &c.model_path,
+                                &sets,
+                                &p.models[*v],
+                                hist,
+                                *dt,
+                                plan.max_dofs,
+                                &ctx,
+                            );
+                            (*v, r)
+                        })
+                        .collect()
+                });
+            let mut report = Vec::with_capacity(measured.len());
+            for (v, r) in measured {
+                let warning = match &r {
+                    Ok(e) => e.warning(),
+                    Err(MeshTwinSkip::Interrupted) => Some(crate::verify::mesh_not_measured(
+                        "a signal stopped the check",
+                    )),
+                    Err(MeshTwinSkip::Failed(why)) => Some(crate::verify::mesh_not_measured(why)),
+                };
+                let estimate = r.as_ref().ok().map(|e| e.estimate);
+                let o = &mut outcomes[v];
+                o.mesh_error_estimate = estimate;
+                o.warnings.extend(warning.clone());
+                if let Some(w) = &writer {
+                    let row = rows.map_or(v, |r| r[v]);
+                    let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
+                    if let Err(e) = g.set_mesh_check(row, estimate, warning.as_deref()) {
+                        output_error.get_or_insert(e);
+                    }
+                }
+                report.push(crate::verify::VariantMesh {
+                    global_index: p.global_index[v],
+                    result: r,
+                });
+            }
+            Some((report, t0.elapsed().as_secs_f64()))
+        }
+        _ => None,
+    };
     let verification = match verify {
         Some(chosen) if output_error.is_none() && !stopped => Some(pool.install(|| {
             crate::verify::run(
@@ -1334,6 +1436,7 @@ fn run_core(
         outcomes,
         output_error,
         verification,
+        mesh: mesh_report,
         batch: batch_counts,
     })
 }
@@ -1385,6 +1488,7 @@ fn not_run(c: &Campaign, p: &Prepared, v: usize, keep_history: bool, why: &str) 
         energy_loss: None,
         time_error_estimate: None,
         time_error_before_first_lock: None,
+        mesh_error_estimate: None,
         warnings: Vec::new(),
         history: keep_history.then(|| dynamics::History {
             t: Vec::new(),

@@ -748,6 +748,121 @@ pub fn compare_twin(
     })
 }
 
+impl RunMeshError {
+    /// The warning a run or a variant carries when its mesh error passes
+    /// [`crate::solver::MESH_ERROR_WARN`]: the worst sensor component, and how many
+    /// other sensors pass it too.
+    pub fn warning(&self) -> Option<String> {
+        let limit = crate::solver::MESH_ERROR_WARN;
+        if self.estimate <= limit {
+            return None;
+        }
+        let others = match self.by_sensor.iter().filter(|x| **x > limit).count() {
+            0 | 1 => String::new(),
+            n => format!(", and {} other sensor(s) above {}", n - 1, percent(limit)),
+        };
+        Some(format!(
+            "mesh too coarse: {} is estimated {:.2} % of its range off the converged mesh \
+             (Richardson from its history on {} elements against {}){others}; add elements",
+            self.worst,
+            100.0 * self.estimate,
+            self.elements.1,
+            self.elements.0
+        ))
+    }
+}
+
+/// The warning of a run or a variant whose mesh error was not measured, and why.
+pub fn mesh_not_measured(why: &str) -> String {
+    format!("mesh error not measured: {why}")
+}
+
+/// Free coordinates of a mesh twin up to which `--mesh-check auto` runs it (`run`, and
+/// each sampled variant of `sweep`). The twin has as many steps as the run, each with
+/// twice the elements: alongside a fixed-step run (second core) it adds about 1-2 times
+/// the run's wall time, after an accuracy-controlled one 2-3 times. 20 000 coordinates
+/// is 1 600 beam elements, where one run already takes minutes and the check would add
+/// as much again or more; above it the error is reported not measured.
+pub const MESH_CHECK_AUTO_DOFS: usize = 20_000;
+
+/// Variants of a sweep whose mesh error `--mesh-check auto` measures: spread over the
+/// campaign as `--verify` spreads its own ([`select`]: the first, the middle, the last).
+/// A campaign varies its parameters smoothly in most studies, so its ends and middle
+/// bound the mesh error of the rows between; three twins cost three variants' runs
+/// about two to three times over, a few percent of a campaign of a hundred.
+pub const MESH_SAMPLE: usize = 3;
+
+/// Which variants of a sweep get a mesh twin (`sweep --mesh-check`).
+#[derive(Clone, Debug, Default)]
+pub struct MeshSample {
+    /// global indices of the variants measured (any shard's; each shard measures those
+    /// it runs, so merged shards carry the figures of the single sweep)
+    pub variants: Vec<usize>,
+    /// twins above this many free coordinates are not run (`auto`); None: every one
+    pub max_dofs: Option<usize>,
+    /// `auto` or `always`, for the report
+    pub mode: String,
+}
+
+impl MeshSample {
+    /// The plan of `--mesh-check MODE` for a campaign of `n` variants: `auto`
+    /// [`MESH_SAMPLE`] of them spread by [`select`] (all when fewer) up to
+    /// [`MESH_CHECK_AUTO_DOFS`], `always` every one at any size, `never` none.
+    pub fn plan(mode: &str, n: usize) -> Option<MeshSample> {
+        let all: Vec<usize> = (0..n).collect();
+        match mode {
+            "auto" if n > 0 => Some(MeshSample {
+                variants: select(&all, MESH_SAMPLE.min(n)).ok()?,
+                max_dofs: Some(MESH_CHECK_AUTO_DOFS),
+                mode: mode.into(),
+            }),
+            "always" if n > 0 => Some(MeshSample {
+                variants: all,
+                max_dofs: None,
+                mode: mode.into(),
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// One sampled variant's mesh check: its measurement, or why there is none.
+#[derive(Clone, Debug)]
+pub struct VariantMesh {
+    pub global_index: usize,
+    pub result: Result<RunMeshError, MeshTwinSkip>,
+}
+
+/// The mesh twin of `base` run with `sets` at step `dt`, after a completed run (samples
+/// `hist`), unless it has more than `max_dofs` free coordinates: what [`compare_twin`]
+/// measures, or why nothing was.
+pub fn measure_mesh(
+    path: &std::path::Path,
+    sets: &[(String, f64)],
+    base: &Model,
+    hist: &dynamics::History,
+    dt: f64,
+    max_dofs: Option<usize>,
+    ctx: &dynamics::RunContext<'_>,
+) -> Result<RunMeshError, MeshTwinSkip> {
+    let twin = mesh_twin_model(path, sets, base, dt).map_err(MeshTwinSkip::Failed)?;
+    if let Some(limit) = max_dofs.filter(|&l| twin.n_eq > l) {
+        return Err(MeshTwinSkip::Failed(too_large_for_auto(&twin, limit)));
+    }
+    let r = run_twin(&twin, ctx)?;
+    compare_twin(base, hist, &twin, &r)
+}
+
+/// Why `--mesh-check auto` does not run `twin`.
+pub fn too_large_for_auto(twin: &Model, limit: usize) -> String {
+    format!(
+        "twice the elements ({}) give {} free coordinates, above the {limit} the check runs \
+         by itself (it costs about twice the run again); `--mesh-check always` runs it",
+        twin.elements.len(),
+        twin.n_eq
+    )
+}
+
 /// Richardson order of a run's sensor histories under mesh refinement, for every sensor.
 /// Measured on the rotating cantilever (first 3 s, 10/20/40 elements against 80): the
 /// root moment's history converges at order 3.3 then 3.9, the tip's at 3.9 (the

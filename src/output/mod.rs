@@ -44,8 +44,9 @@
 //!                          session 24 lack it; read as NaN)
 //! /status/mesh_error_estimate float64 [V]: estimated mesh error of the sensors relative
 //!                          to their range, measured by `run`'s mesh twin (README
-//!                          "Accuracy"); NaN where not measured (every sweep variant;
-//!                          files written before session 49 lack it, read as NaN)
+//!                          "Accuracy") and, in a sweep, for the variants `--mesh-check`
+//!                          samples; NaN where not measured (files written before
+//!                          session 49 lack it, read as NaN)
 //! /status/warnings         str [V]: the variant's warnings, one per line (empty: none)
 //! /status/global_index     int64 [V]: index of each variant in the whole campaign
 //!                          (differs from the row index when the campaign is sharded)
@@ -1107,6 +1108,27 @@ impl CampaignWriter {
     pub fn set_status(&mut self, variant: usize, st: &VariantStatus) -> Result<(), OutputError> {
         self.check_variant(variant)?;
         self.status[variant] = st.clone();
+        self.dirty = true;
+        Ok(())
+    }
+
+    /// Record the mesh check of `variant` after its run: `/status/mesh_error_estimate`
+    /// (NaN: not measured) and, where it warns, one more line of `/status/warnings`.
+    pub fn set_mesh_check(
+        &mut self,
+        variant: usize,
+        estimate: Option<f64>,
+        warning: Option<&str>,
+    ) -> Result<(), OutputError> {
+        self.check_variant(variant)?;
+        let st = &mut self.status[variant];
+        st.mesh_error_estimate = estimate.unwrap_or(f64::NAN);
+        if let Some(w) = warning {
+            if !st.warnings.is_empty() {
+                st.warnings.push('\n');
+            }
+            st.warnings.push_str(w);
+        }
         self.dirty = true;
         Ok(())
     }

@@ -451,14 +451,6 @@ fn run_context<'a>(
 const MESH_INTERRUPTED: &str = "interrupted (SIGINT, SIGTERM or SIGHUP) during the mesh \
     check, after the run completed: the results are the run's, its mesh error is not measured";
 
-/// Free coordinates of the mesh twin up to which `--mesh-check auto` runs it. The twin
-/// has as many steps as the run, each with twice the elements: alongside a fixed-step
-/// run (second core) it adds about 1-2 times the run's wall time, after an accuracy-
-/// controlled one 2-3 times. 20 000 coordinates is 1 600 beam elements, where one run
-/// already takes minutes and the check would add as much again or more; above it the
-/// run warns that the error was not measured.
-const MESH_CHECK_AUTO_DOFS: usize = 20_000;
-
 /// What `run`'s mesh check gave: the measurement, the warning it raises (mesh too
 /// coarse, or not measured and why), and whether a signal stopped it.
 #[derive(Default)]
@@ -482,26 +474,7 @@ impl MeshCheck {
         use latdyn::verify::MeshTwinSkip;
         match r.and_then(|r| latdyn::verify::compare_twin(m, hist, twin, &r)) {
             Ok(e) => {
-                if e.estimate > latdyn::solver::MESH_ERROR_WARN {
-                    let others = e
-                        .by_sensor
-                        .iter()
-                        .filter(|x| **x > latdyn::solver::MESH_ERROR_WARN)
-                        .count();
-                    let others = match others {
-                        0 | 1 => String::new(),
-                        n => format!(", and {} other sensor(s) above 1 %", n - 1),
-                    };
-                    self.warning = Some(format!(
-                        "mesh too coarse: {} is estimated {:.2} % of its range off the \
-                         converged mesh (Richardson from its history on {} elements against \
-                         {}){others}; add elements",
-                        e.worst,
-                        100.0 * e.estimate,
-                        e.elements.1,
-                        e.elements.0
-                    ));
-                }
+                self.warning = e.warning();
                 self.error = Some(e);
             }
             Err(MeshTwinSkip::Interrupted) => {
@@ -514,7 +487,7 @@ impl MeshCheck {
 }
 
 fn not_measured(why: &str) -> Option<String> {
-    Some(format!("mesh error not measured: {why}"))
+    Some(latdyn::verify::mesh_not_measured(why))
 }
 
 /// The mesh twin of a run of `m` at step `dt` (`latdyn::verify::mesh_twin_model`: every
@@ -532,13 +505,10 @@ fn prepare_twin(args: &RunArgs, m: &Model, dt: f64, check: &mut MeshCheck) -> Op
             return None;
         }
     };
-    if args.mesh_check == "auto" && twin.n_eq > MESH_CHECK_AUTO_DOFS {
-        check.warning = not_measured(&format!(
-            "twice the elements ({}) give {} free coordinates, above the {MESH_CHECK_AUTO_DOFS} \
-             the check runs by itself (it costs about twice the run again); \
-             `--mesh-check always` runs it",
-            twin.elements.len(),
-            twin.n_eq
+    if args.mesh_check == "auto" && twin.n_eq > latdyn::verify::MESH_CHECK_AUTO_DOFS {
+        check.warning = not_measured(&latdyn::verify::too_large_for_auto(
+            &twin,
+            latdyn::verify::MESH_CHECK_AUTO_DOFS,
         ));
         return None;
     }

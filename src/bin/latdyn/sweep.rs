@@ -267,6 +267,12 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             }
         }
     };
+    // --mesh-check: the variants whose mesh twin runs after the campaign, chosen over
+    // the whole campaign so that shards measure the rows the single sweep would
+    let mesh_plan = latdyn::verify::MeshSample::plan(
+        args.mesh_check.as_deref().unwrap_or("auto"),
+        c.variants.len(),
+    );
     let (prepared, resume) = match (&args.resume, target.take()) {
         (Some(path), Some(t)) => {
             let r = match latdyn::campaign::resume_until(t, &c, &stage, &origin, &stop) {
@@ -351,6 +357,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         outcomes,
         output_error,
         verification,
+        mesh,
         batch: batch_counts,
     } = {
         let progress = |done: usize, _: usize| {
@@ -366,9 +373,16 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         // `--resume` completes it, and `--json` still gets its object (until session 47
         // stdout stayed empty; a probe)
         let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match resume {
-            Some((writer, rows)) => {
-                ensemble::run_resume(&c, &prepared, &stop, &progress, &stage, writer, &rows)
-            }
+            Some((writer, rows)) => ensemble::run_resume(
+                &c,
+                &prepared,
+                &stop,
+                &progress,
+                &stage,
+                writer,
+                &rows,
+                mesh_plan.as_ref(),
+            ),
             None => ensemble::run_verified_to(
                 &c,
                 &prepared,
@@ -378,6 +392,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                 &stage,
                 target,
                 verify_chosen.as_deref(),
+                mesh_plan.as_ref(),
             ),
         }));
         match ran {
@@ -467,8 +482,8 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     .unwrap_or_default()
             ),
         ),
-        // every variant done: the signal stopped the refined runs of --verify only, and
-        // the file is complete
+        // every variant done: the signal stopped the mesh twins or the refined runs of
+        // --verify only, and the file is complete
         None if interrupted
             && outcomes.iter().all(|o| {
                 matches!(
@@ -479,9 +494,9 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         {
             (
                 "interrupted",
-                "interrupted by a signal during the --verify runs: every variant ran and the \
-                 campaign file is complete; the verification covers only the refined runs \
-                 that finished"
+                "interrupted by a signal during the mesh checks or the --verify runs: every \
+                 variant ran and the campaign file is complete; the mesh error and the \
+                 verification cover only the runs that finished"
                     .to_string(),
             )
         }
@@ -515,23 +530,18 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             .iter()
             .map(|o| (o.global_index, o.warnings.clone())),
     );
+    let has_mesh = prepared
+        .models
+        .first()
+        .is_some_and(|m| !m.elem_data.is_empty());
+    let mesh_json = has_mesh
+        .then(|| mesh_summary(mesh.as_ref(), mesh_plan.as_ref(), c.variants.len()))
+        .flatten();
     if let Some(v) = &verification {
         eprintln!("{}", v.summary());
         for w in &v.warnings {
             eprintln!("warning: verify: {w}");
         }
-    } else if args.verify.is_none()
-        && prepared
-            .models
-            .first()
-            .is_some_and(|m| !m.elem_data.is_empty())
-    {
-        // `run` measures one variant's mesh error by its twin; a sweep measures none
-        eprintln!(
-            "note: the variants' mesh error is not measured: `--verify K` runs K of them \
-             again on twice the elements at half the step, and `latdyn run` with a \
-             variant's --set measures that one's"
-        );
     }
     if args.model.json {
         let m0 = prepared.models.first();
@@ -581,6 +591,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                     "energy_loss": o.energy_loss,
                     "time_error_estimate": o.time_error_estimate,
                     "time_error_before_first_lock": o.time_error_before_first_lock,
+                    "mesh_error_estimate": o.mesh_error_estimate,
                     "warnings": o.warnings,
                     "in_file": o.in_file,
                     "sensors": sensors,
@@ -617,6 +628,9 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
                 "model_uploads": model.uploads,
                 "model_bytes": model.bytes,
             });
+        }
+        if let Some(m) = mesh_json {
+            v["mesh_check"] = m;
         }
         if args.verify.is_some() {
             v["verification"] = match &verification {
@@ -667,6 +681,131 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         ));
     }
     Ok(())
+}
+
+/// What a sweep's `--mesh-check` measured (`mesh`: the sampled variants of this shard
+/// and the twins' wall time), said on stderr, with the `mesh_check` object of
+/// `sweep --json`. The campaign's rows that were not sampled carry no figure: where a
+/// sampled one passes the limit, the warning says they are likely as coarse.
+fn mesh_summary(
+    mesh: Option<&(Vec<latdyn::verify::VariantMesh>, f64)>,
+    plan: Option<&latdyn::verify::MeshSample>,
+    n_variants: usize,
+) -> Option<serde_json::Value> {
+    use latdyn::verify::MeshTwinSkip;
+    let Some(plan) = plan else {
+        eprintln!(
+            "note: --mesh-check never: the variants' mesh error is not measured (`latdyn \
+             run` with a variant's --set measures that one's)"
+        );
+        return Some(serde_json::json!({"mode": "never", "sampled": []}));
+    };
+    let Some((checks, wall)) = mesh else {
+        return Some(serde_json::json!({
+            "mode": plan.mode,
+            "sampled": plan.variants,
+            "measured": [],
+            "skipped": "the campaign did not finish (interrupted or output failed)",
+        }));
+    };
+    let limit = latdyn::solver::MESH_ERROR_WARN;
+    let measured: Vec<(usize, &latdyn::verify::RunMeshError)> = checks
+        .iter()
+        .filter_map(|c| c.result.as_ref().ok().map(|e| (c.global_index, e)))
+        .collect();
+    let not_measured: Vec<serde_json::Value> = checks
+        .iter()
+        .filter_map(|c| match &c.result {
+            Ok(_) => None,
+            Err(MeshTwinSkip::Interrupted) => Some(serde_json::json!({
+                "index": c.global_index, "why": "a signal stopped the check"
+            })),
+            Err(MeshTwinSkip::Failed(why)) => Some(serde_json::json!({
+                "index": c.global_index, "why": why
+            })),
+        })
+        .collect();
+    let worst = measured
+        .iter()
+        .copied()
+        .max_by(|a, b| a.1.estimate.total_cmp(&b.1.estimate));
+    let above: Vec<usize> = measured
+        .iter()
+        .filter(|(_, e)| e.estimate > limit)
+        .map(|(g, _)| *g)
+        .collect();
+    let indices = |v: &[usize]| -> String {
+        v.iter()
+            .map(|g| g.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let here: Vec<usize> = checks.iter().map(|c| c.global_index).collect();
+    match worst {
+        Some((g, e)) => {
+            eprintln!(
+            "mesh check: {} of {} sampled variant(s) here ({}) run again on {} elements (their \
+             {} doubled) at their step in {wall:.2} s: largest mesh error estimate {:.2} % \
+             ({}, variant {g}){}",
+            measured.len(),
+            here.len(),
+            indices(&here),
+            e.elements.1,
+            e.elements.0,
+            100.0 * e.estimate,
+            e.worst,
+            if e.estimate > limit { ", above 1 %" } else { "" }
+        )
+        }
+        None if here.is_empty() => eprintln!(
+            "mesh check: none of the sampled variants ({}) is in this shard",
+            indices(&plan.variants)
+        ),
+        None => eprintln!(
+            "mesh check: no sampled variant measured ({}; see their warnings)",
+            indices(&here)
+        ),
+    }
+    let unmeasured = n_variants.saturating_sub(plan.variants.len());
+    if !above.is_empty() {
+        eprintln!(
+            "warning: mesh: variant(s) {} are estimated above 1 % of a sensor's range off the \
+             converged mesh (their warnings name the sensor); {}add elements",
+            indices(&above),
+            if unmeasured > 0 {
+                format!(
+                    "the {unmeasured} variant(s) not sampled were not measured and are likely as \
+                     coarse; "
+                )
+            } else {
+                String::new()
+            }
+        );
+    } else if unmeasured > 0 && !measured.is_empty() {
+        eprintln!(
+            "note: mesh: {unmeasured} variant(s) not sampled are not measured (`--mesh-check \
+             always` measures every one)"
+        );
+    }
+    let num = |x: f64| {
+        if x.is_finite() {
+            serde_json::json!(x)
+        } else {
+            serde_json::json!(null)
+        }
+    };
+    Some(serde_json::json!({
+        "mode": plan.mode,
+        "sampled": plan.variants,
+        "measured": measured.iter().map(|(g, _)| *g).collect::<Vec<_>>(),
+        "not_measured": not_measured,
+        "limit": limit,
+        "max_estimate": worst.map(|(_, e)| num(e.estimate)),
+        "worst": worst.map(|(g, e)| serde_json::json!({"index": g, "sensor": e.worst})),
+        "above_limit": above,
+        "elements": worst.map(|(_, e)| [e.elements.0, e.elements.1]),
+        "wall_s": wall,
+    }))
 }
 
 /// A sweep stopped by a signal while its variants were being compiled (before any
@@ -855,8 +994,15 @@ fn report_warning_kinds(warned: impl Iterator<Item = (usize, Vec<String>)>) {
 /// file with the point index as time and λ in `path_lambda`.
 pub(crate) fn sweep_path(args: &SweepArgs) -> anyhow::Result<()> {
     use latdyn::solver::path;
-    if args.accuracy.is_some() || args.frequency.is_some() || args.verify.is_some() {
-        bail!("sweep --path: --accuracy, --frequency and --verify apply to dynamic runs only");
+    if args.accuracy.is_some()
+        || args.frequency.is_some()
+        || args.verify.is_some()
+        || args.mesh_check.is_some()
+    {
+        bail!(
+            "sweep --path: --accuracy, --frequency, --verify and --mesh-check apply to \
+             dynamic runs only"
+        );
     }
     // path campaign files carry no campaign identity (README "Not built yet"): they
     // cannot be resumed or planned, and a --resume was silently ignored (all paths
