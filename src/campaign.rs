@@ -985,6 +985,12 @@ pub struct Resume {
 /// missing in a merge) and reopens the file with their rows cleared (state pending, NaN
 /// samples); every completed row keeps its stored bytes. A variant that does not compile
 /// is named as `origin` says (see [`crate::ensemble::Origin`]).
+///
+/// With `mesh`, a completed variant it samples whose mesh error is not in the file (NaN,
+/// and no warning that it could not be measured: the sweep stopped before its twin ran)
+/// is run again too, so that it gets its twin: the resumed file then holds what the
+/// sweep run whole holds (the run is deterministic, its samples are rewritten as they
+/// were).
 pub fn resume(
     target: OutputTarget,
     c: &crate::ensemble::Campaign,
@@ -997,6 +1003,7 @@ pub fn resume(
         stage,
         origin,
         &std::sync::atomic::AtomicBool::new(false),
+        None,
     )
 }
 
@@ -1009,12 +1016,22 @@ pub fn resume_until(
     stage: &crate::ensemble::Stage,
     origin: &crate::ensemble::Origin,
     stop: &std::sync::atomic::AtomicBool,
+    mesh: Option<&crate::verify::MeshSample>,
 ) -> Result<Resume, MergeError> {
     let f = CampaignFile::open(target.path())?;
+    let unmeasured = |row: usize, s: &VariantStatus| {
+        mesh.is_some_and(|m| {
+            f.global_index
+                .get(row)
+                .is_some_and(|g| m.variants.contains(g))
+        }) && s.mesh_error_estimate.is_nan()
+            && !s.warnings.contains("mesh error not measured")
+    };
     let rerun: Vec<bool> = f
         .status
         .iter()
-        .map(|s| s.state != VariantState::Completed)
+        .enumerate()
+        .map(|(row, s)| s.state != VariantState::Completed || unmeasured(row, s))
         .collect();
     // a completed row keeps its stored values: an edited one would label its samples
     // wrongly, as `merge` refuses (until session 47 resume kept omega = 77 on the

@@ -1068,12 +1068,14 @@ fn run_core(
     mesh: Option<&crate::verify::MeshSample>,
 ) -> Result<CampaignRun, EnsembleError> {
     let nv = p.models.len();
-    // the positions (in `p`) of the variants whose mesh twin runs after the campaign:
-    // their histories are kept until then, with the step their run was made at
+    // the positions (in `p`) of the variants whose mesh twin runs after the campaign
+    // (a model without beams has no mesh): their histories are kept until then, with
+    // the step their run was made at
     let sampled: Vec<bool> = p
         .global_index
         .iter()
-        .map(|g| mesh.is_some_and(|s| s.variants.contains(g)))
+        .zip(&p.models)
+        .map(|(g, m)| mesh.is_some_and(|s| s.variants.contains(g)) && !m.elem_data.is_empty())
         .collect();
     let kept: Mutex<Vec<(usize, dynamics::History, f64)>> = Mutex::new(Vec::new());
     let writer = writer.map(Mutex::new);
@@ -1366,9 +1368,9 @@ fn run_core(
             for (v, r) in measured {
                 let warning = match &r {
                     Ok(e) => e.warning(),
-                    Err(MeshTwinSkip::Interrupted) => Some(crate::verify::mesh_not_measured(
-                        "a signal stopped the check",
-                    )),
+                    // the row keeps no mark: `sweep --resume` measures it (see
+                    // `campaign::resume`); the sweep says it was stopped
+                    Err(MeshTwinSkip::Interrupted) => None,
                     Err(MeshTwinSkip::Failed(why)) => Some(crate::verify::mesh_not_measured(why)),
                 };
                 let estimate = r.as_ref().ok().map(|e| e.estimate);

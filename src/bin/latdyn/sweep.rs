@@ -268,14 +268,23 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         }
     };
     // --mesh-check: the variants whose mesh twin runs after the campaign, chosen over
-    // the whole campaign so that shards measure the rows the single sweep would
+    // the whole campaign so that shards measure the rows the single sweep would (none
+    // where the model has no beams: the variants share its topology)
     let mesh_plan = latdyn::verify::MeshSample::plan(
         args.mesh_check.as_deref().unwrap_or("auto"),
         c.variants.len(),
-    );
+    )
+    .filter(|_| !base_model.elem_data.is_empty());
     let (prepared, resume) = match (&args.resume, target.take()) {
         (Some(path), Some(t)) => {
-            let r = match latdyn::campaign::resume_until(t, &c, &stage, &origin, &stop) {
+            let r = match latdyn::campaign::resume_until(
+                t,
+                &c,
+                &stage,
+                &origin,
+                &stop,
+                mesh_plan.as_ref(),
+            ) {
                 Ok(r) => r,
                 Err(latdyn::campaign::MergeError::Interrupted(message)) => {
                     return interrupted_in_preparation(args, &c, &stage, t_prepare, message)
@@ -758,7 +767,8 @@ fn mesh_summary(
         )
         }
         None if here.is_empty() => eprintln!(
-            "mesh check: none of the sampled variants ({}) is in this shard",
+            "mesh check: none of the sampled variants ({}) ran here (another shard's, or \
+             completed before this resume)",
             indices(&plan.variants)
         ),
         None => eprintln!(
