@@ -1336,6 +1336,17 @@ fn run_core(
     let stopped = stop.load(Ordering::SeqCst);
     let mesh_report = match mesh {
         Some(plan) if output_error.is_none() && !stopped => {
+            // every variant's result on disk before the twins (they take two to three
+            // times a variant's run): a signal or a kill during them keeps the campaign
+            if let Some(w) = &writer {
+                let seq = writes.load(Ordering::SeqCst);
+                match w.lock().unwrap_or_else(|p| p.into_inner()).flush() {
+                    Ok(()) => flushed.store(seq, Ordering::SeqCst),
+                    Err(e) => {
+                        output_error.get_or_insert(e);
+                    }
+                }
+            }
             let t0 = Instant::now();
             let mut kept = kept.into_inner().unwrap_or_else(|p| p.into_inner());
             // campaign order, whatever order the variants ended in

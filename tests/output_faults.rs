@@ -467,6 +467,10 @@ fn sigterm_mid_run_keeps_the_samples_so_far_marked_interrupted() {
             let rows = text.lines().count();
             assert!(rows > 2, "CSV holds the samples so far: {rows} lines");
             assert!(rows < 100_000, "and not a finished run: {rows} lines");
+            // and says so on its last line, a comment numpy skips
+            let last = text.lines().last().unwrap();
+            assert!(last.starts_with("# interrupted at t = "), "{last}");
+            assert!(last.ends_with("the rows stop there"), "{last}");
             continue;
         }
         let (status, state) = rust_summary(&path);
@@ -537,6 +541,76 @@ fn a_signal_during_the_mesh_check_keeps_the_completed_run_and_says_the_check_was
     );
     let mesh = f.dataset("status/mesh_error_estimate").unwrap();
     assert!(mesh.read_raw::<f64>().unwrap()[0].is_nan());
+    no_temporaries(&dir);
+}
+
+/// A signal during a sweep's mesh checks (every variant completed, flushed before the
+/// twins start): exit 4 naming the checks, the file complete with every variant, the
+/// sampled rows without a figure and without a "not measured" mark, so that
+/// `sweep --resume` measures them (it runs those variants again, bit for bit, and their
+/// twins).
+#[test]
+fn a_signal_during_a_sweeps_mesh_checks_keeps_the_campaign_and_resume_measures_them() {
+    let dir = scratch("sigterm_sweep_mesh_check");
+    let path = dir.join("c.h5");
+    // two variants of 10 000 steps on 10 elements (10 s), then their twins on 20 (6 s)
+    let args = [
+        "sweep",
+        "models/rotating_cantilever.toml",
+        "--set",
+        "dt=0.01",
+        "--set",
+        "t_end=100",
+        "--set",
+        "elements=10",
+        "--vary",
+        "omega=1:2:2",
+        "--threads",
+        "2",
+    ];
+    let mut first: Vec<&str> = args.to_vec();
+    first.extend(["-o", s(&path), "--json"]);
+    let child = spawn(latdyn(&first));
+    common::wait_until(120, "both variants flushed", || {
+        common::completed_variants(&path) == 2
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    signal(&child, "TERM");
+    let out = finish(child, 60);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(4), "{err}");
+    assert!(err.contains("during the mesh checks"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "interrupted", "{v}");
+    for row in v["variants"].as_array().unwrap() {
+        assert_eq!(row["status"], "completed", "{row}");
+        assert_eq!(row["mesh_error_estimate"], serde_json::Value::Null, "{row}");
+    }
+    let (status, state) = rust_summary(&path);
+    assert_eq!(
+        (status.as_str(), state.as_slice()),
+        ("complete", &[2, 2][..])
+    );
+    let f = latdyn::campaign::CampaignFile::open(&path).unwrap();
+    assert!(
+        f.status
+            .iter()
+            .all(|s| s.mesh_error_estimate.is_nan()
+                && !s.warnings.contains("mesh error not measured"))
+    );
+    let mut again: Vec<&str> = args.to_vec();
+    again.extend(["--resume", s(&path), "--json"]);
+    let out = finish(spawn(latdyn(&again)), 300);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let f = latdyn::campaign::CampaignFile::open(&path).unwrap();
+    assert!(
+        f.status.iter().all(|s| s.mesh_error_estimate.is_finite()),
+        "{:?}",
+        f.status
+            .iter()
+            .map(|s| s.mesh_error_estimate)
+            .collect::<Vec<_>>()
+    );
     no_temporaries(&dir);
 }
 

@@ -32,7 +32,7 @@ impl RunSink {
         if is_csv(target.path()) {
             let text = csv_header(m);
             // written at once: the path is shown writable before the run
-            target.replace_with(text.as_bytes())?;
+            target.replace_with((text.clone() + CSV_RUNNING).as_bytes())?;
             Ok(RunSink::Csv { target, text })
         } else {
             crate::note_hdf5_name(target.path());
@@ -67,7 +67,10 @@ impl RunSink {
     pub(crate) fn flush(&mut self) -> Result<(), latdyn::output::OutputError> {
         match self {
             RunSink::H5(w) => w.flush(),
-            RunSink::Csv { target, text } => target.replace_with(text.as_bytes()),
+            // the last line says the rows stop short, should the process be killed
+            RunSink::Csv { target, text } => {
+                target.replace_with((text.clone() + CSV_RUNNING).as_bytes())
+            }
         }
     }
 
@@ -85,9 +88,32 @@ impl RunSink {
                     "complete"
                 })
             }
-            RunSink::Csv { target, text } => target.replace_with(text.as_bytes()),
+            RunSink::Csv { target, mut text } => {
+                if status.state != VariantState::Completed {
+                    text += &csv_trailer(status);
+                }
+                target.replace_with(text.as_bytes())
+            }
         }
     }
+}
+
+/// The last line of a `run -o FILE.csv` written mid-run: a CSV has no status field, so a
+/// file whose rows stop short says so where a reader meets it (numpy's `loadtxt` and
+/// `genfromtxt` skip `#` lines, pandas with `comment="#"`; a reader that does not fails
+/// on it rather than taking the rows for a finished run). A completed run has none.
+const CSV_RUNNING: &str =
+    "# running: the run had not finished when this file was written; the rows stop short\n";
+
+/// The last line of the CSV of a run that ended short of `t_end` (see [`CSV_RUNNING`]).
+fn csv_trailer(status: &latdyn::output::VariantStatus) -> String {
+    let message = status.message.replace(['\n', '\r'], " ");
+    let what = match (message.is_empty(), status.t_fail.is_finite()) {
+        (false, _) => message,
+        (true, true) => format!("{} at t = {} s", status.state.label(), status.t_fail),
+        (true, false) => status.state.label().to_string(),
+    };
+    format!("# {what}; the rows stop there\n")
 }
 
 /// The stderr note for a fixed step that does not divide the output interval (the run
