@@ -461,3 +461,39 @@ fn a_run_whose_json_would_not_fit_in_memory_is_refused_before_it_starts() {
     assert!(out.stdout.is_empty());
     assert!(t0.elapsed().as_secs() < 30, "{:?}", t0.elapsed());
 }
+
+/// `sweep --mesh-check always` keeps every variant's histories until their twins run (8
+/// times the campaign's own 8 bytes per value): a campaign within `output_values` whose
+/// kept histories would take more than half the memory is refused before anything runs,
+/// naming the memory and pointing to `auto`. Sized from this machine's memory: the
+/// rotating cantilever keeps 200 values per second of t_end.
+#[test]
+fn mesh_checks_of_every_variant_that_would_not_fit_in_memory_are_refused_before_the_sweep() {
+    let Some(mem) = std::fs::read_to_string("/proc/meminfo").ok().and_then(|t| {
+        let line = t.lines().find(|l| l.starts_with("MemTotal:"))?.to_string();
+        line.split_whitespace().nth(1)?.parse::<f64>().ok()
+    }) else {
+        println!("SKIPPED: /proc/meminfo not readable");
+        return;
+    };
+    // 100 variants × 200 values/s × t_end = mem / 32 values (mem in bytes): with the
+    // time column, under the mem / 8 output_values allows at most; kept at 64 bytes each,
+    // four times half the memory
+    let t_end = (mem * 1024.0 / 32.0 / 100.0 / 200.0).ceil();
+    let out = latdyn_env(
+        &[
+            "sweep",
+            "models/rotating_cantilever.toml",
+            "--set",
+            "dt=0.01",
+            "--set",
+            &format!("t_end={t_end}"),
+            "--vary",
+            "omega=1:2:100",
+            "--mesh-check",
+            "always",
+        ],
+        &[("LATDYN_LIMITS", "output_values=1e18,steps=1e18")],
+    );
+    fails_with(&out, &["--mesh-check keeps", "this machine's", "auto"]);
+}

@@ -275,6 +275,9 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         c.variants.len(),
     )
     .filter(|_| !base_model.elem_data.is_empty());
+    if let Some(plan) = &mesh_plan {
+        check_kept_histories(&base_model, plan.variants.len())?;
+    }
     let (prepared, resume) = match (&args.resume, target.take()) {
         (Some(path), Some(t)) => {
             let r = match latdyn::campaign::resume_until(
@@ -690,6 +693,40 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Bytes a kept sensor history takes per value (one component of one sample): the f64,
+/// and its share of the per-sample vector (24 bytes and an allocation of at least 32)
+/// for a one-component sensor, the worst case.
+const KEPT_BYTES_PER_VALUE: f64 = 64.0;
+
+/// The sampled variants' histories are kept in memory until their twins run, after the
+/// campaign (`--mesh-check always`: every variant's). Refused before anything runs where
+/// they would take more than half this machine's memory: the campaign's own values are
+/// held to `output_values` at 8 bytes each, a kept history takes 8 times that.
+fn check_kept_histories(m: &latdyn::model::Model, kept: usize) -> anyhow::Result<()> {
+    let Some(mem) = latdyn::model::limits::memory_bytes() else {
+        return Ok(());
+    };
+    let per_variant = latdyn::solver::dynamics::output_times(m).len() as f64
+        * m.sensors
+            .iter()
+            .map(|s| latdyn::sensors::components(&s.kind).len() as f64)
+            .sum::<f64>();
+    let bytes = per_variant * kept as f64 * KEPT_BYTES_PER_VALUE;
+    if bytes <= 0.5 * mem as f64 {
+        return Ok(());
+    }
+    bail!(
+        "{}: --mesh-check keeps the histories of {kept} variant(s) until their twins run, {} \
+         values, about {:.1} GB at {KEPT_BYTES_PER_VALUE} bytes each, more than half this \
+         machine's {:.1} GiB: `--mesh-check auto` measures three, or sample less often \
+         (`[solver] output_dt`)",
+        m.path,
+        latdyn::model::limits::count(per_variant * kept as f64),
+        bytes / 1e9,
+        mem as f64 / f64::from(1u32 << 30)
+    )
 }
 
 /// What a sweep's `--mesh-check` measured (`mesh`: the sampled variants of this shard
