@@ -706,6 +706,10 @@ pub struct Prepared {
     pub reference: Option<Model>,
 }
 
+/// `/derived/` name of a sampled variant's first bending frequency's mesh error
+/// (`sweep --frequency` with `--mesh-check`, see [`crate::verify::frequency_mesh_error`]).
+pub const FIRST_BENDING_MESH_ERROR: &str = "first_bending_mesh_error";
+
 /// Compile every variant (of this shard) and check they share topology and time grid.
 pub fn prepare(c: &Campaign) -> Result<Prepared, EnsembleError> {
     prepare_until(c, &AtomicBool::new(false))
@@ -1077,7 +1081,13 @@ fn run_core(
         .zip(&p.models)
         .map(|(g, m)| mesh.is_some_and(|s| s.variants.contains(g)) && !m.elem_data.is_empty())
         .collect();
-    let kept: Mutex<Vec<(usize, dynamics::History, f64)>> = Mutex::new(Vec::new());
+    type Kept = (
+        usize,
+        dynamics::History,
+        f64,
+        Option<crate::frequency::FirstBending>,
+    );
+    let kept: Mutex<Vec<Kept>> = Mutex::new(Vec::new());
     let writer = writer.map(Mutex::new);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let last_flush = Mutex::new(Instant::now());
@@ -1142,6 +1152,7 @@ fn run_core(
         let summaries = summarize(m, &hist);
         let mut derived = Vec::new();
         let mut warnings = stats.warnings();
+        let mut first_bending = None;
         if let (Some((name, comp)), VariantState::Completed) = (&c.frequency_sensor, state) {
             if let Some(k) = m.sensor_index(name) {
                 let x: Vec<f64> = hist.values[k].iter().map(|s| s[*comp]).collect();
@@ -1151,7 +1162,8 @@ fn run_core(
                 if let Some(e) = fb.eig_hz {
                     derived.push(("first_bending_eig_hz".to_string(), e));
                 }
-                warnings.extend(fb.warnings);
+                warnings.extend(fb.warnings.iter().cloned());
+                first_bending = Some(fb);
             }
         }
         let t_out = Instant::now();
@@ -1160,6 +1172,7 @@ fn run_core(
                 v,
                 hist.clone(),
                 stats.accuracy_dt.unwrap_or(m.solver.dt),
+                first_bending,
             ));
         }
         if let Some(w) = &writer {
@@ -1350,11 +1363,11 @@ fn run_core(
             let t0 = Instant::now();
             let mut kept = kept.into_inner().unwrap_or_else(|p| p.into_inner());
             // campaign order, whatever order the variants ended in
-            kept.sort_by_key(|(v, _, _)| *v);
+            kept.sort_by_key(|(v, ..)| *v);
             let measured: Vec<(usize, Result<crate::verify::RunMeshError, MeshTwinSkip>)> = pool
                 .install(|| {
                     kept.par_iter()
-                        .map(|(v, hist, dt)| {
+                        .map(|(v, hist, dt, fb)| {
                             let mut sets = c.base.clone();
                             sets.extend(c.variants[p.global_index[*v]].iter().cloned());
                             let ctx = dynamics::RunContext {
@@ -1362,14 +1375,21 @@ fn run_core(
                                 symbolic: None,
                                 eval: stage.make.as_ref().map(|make| make()),
                             };
+                            let m = &p.models[*v];
+                            let frequency = c
+                                .frequency_sensor
+                                .as_ref()
+                                .and_then(|(name, comp)| Some((m.sensor_index(name)?, *comp)))
+                                .zip(fb.as_ref());
                             let r = crate::verify::measure_mesh(
                                 &c.model_path,
                                 &sets,
-                                &p.models[*v],
+                                m,
                                 hist,
                                 *dt,
                                 plan.max_dofs,
                                 &ctx,
+                                frequency,
                             );
                             (*v, r)
                         })
@@ -1377,21 +1397,37 @@ fn run_core(
                 });
             let mut report = Vec::with_capacity(measured.len());
             for (v, r) in measured {
+                let row = rows.map_or(v, |r| r[v]);
                 let warning = match &r {
-                    Ok(e) => e.warning(),
+                    Ok(e) => {
+                        let w: Vec<String> = e
+                            .warning()
+                            .into_iter()
+                            .chain(e.frequency_warning())
+                            .collect();
+                        (!w.is_empty()).then(|| w.join("\n"))
+                    }
                     // the row keeps no mark: `sweep --resume` measures it (see
                     // `campaign::resume`); the sweep says it was stopped
                     Err(MeshTwinSkip::Interrupted) => None,
                     Err(MeshTwinSkip::Failed(why)) => Some(crate::verify::mesh_not_measured(why)),
                 };
                 let estimate = r.as_ref().ok().map(|e| e.estimate);
+                let frequency = r.as_ref().ok().and_then(|e| e.first_bending);
                 let o = &mut outcomes[v];
                 o.mesh_error_estimate = estimate;
-                o.warnings.extend(warning.clone());
+                o.warnings
+                    .extend(warning.iter().flat_map(|w| w.lines().map(String::from)));
+                if let Some(x) = frequency {
+                    o.derived.push((FIRST_BENDING_MESH_ERROR.to_string(), x));
+                }
                 if let Some(w) = &writer {
-                    let row = rows.map_or(v, |r| r[v]);
                     let mut g = w.lock().unwrap_or_else(|p| p.into_inner());
-                    if let Err(e) = g.set_mesh_check(row, estimate, warning.as_deref()) {
+                    let mut r = g.set_mesh_check(row, estimate, warning.as_deref());
+                    if let Some(x) = frequency {
+                        r = r.and_then(|_| g.set_derived(FIRST_BENDING_MESH_ERROR, row, x));
+                    }
+                    if let Err(e) = r {
                         output_error.get_or_insert(e);
                     }
                 }

@@ -646,6 +646,9 @@ pub struct RunMeshError {
     pub dt: f64,
     pub steps: usize,
     pub wall_s: f64,
+    /// `sweep --frequency`: the first bending frequency's mesh error (see
+    /// [`frequency_mesh_error`]); None where not asked for or not measurable
+    pub first_bending: Option<f64>,
 }
 
 /// Why a run's mesh error was not measured.
@@ -745,10 +748,27 @@ pub fn compare_twin(
         dt: twin.solver.dt,
         steps: run.steps,
         wall_s: run.wall_s,
+        first_bending: None,
     })
 }
 
 impl RunMeshError {
+    /// The warning of a first bending frequency (`sweep --frequency`) whose mesh error
+    /// passes [`crate::solver::MESH_ERROR_WARN`].
+    pub fn frequency_warning(&self) -> Option<String> {
+        let e = self.first_bending?;
+        (e > crate::solver::MESH_ERROR_WARN).then(|| {
+            format!(
+                "first_bending_hz: mesh too coarse: the frequency is estimated {:.2} % off \
+                 the converged mesh (its change from {} to {} elements, Richardson); add \
+                 elements",
+                100.0 * e,
+                self.elements.0,
+                self.elements.1
+            )
+        })
+    }
+
     /// The warning a run or a variant carries when its mesh error passes
     /// [`crate::solver::MESH_ERROR_WARN`]: the worst sensor component, and how many
     /// other sensors pass it too.
@@ -836,6 +856,10 @@ pub struct VariantMesh {
 /// The mesh twin of `base` run with `sets` at step `dt`, after a completed run (samples
 /// `hist`), unless it has more than `max_dofs` free coordinates: what [`compare_twin`]
 /// measures, or why nothing was.
+///
+/// With `frequency` (`sweep --frequency`: the sensor component and the base run's
+/// first bending frequency), also that frequency's mesh error from the twin's history.
+#[allow(clippy::too_many_arguments)]
 pub fn measure_mesh(
     path: &std::path::Path,
     sets: &[(String, f64)],
@@ -844,13 +868,47 @@ pub fn measure_mesh(
     dt: f64,
     max_dofs: Option<usize>,
     ctx: &dynamics::RunContext<'_>,
+    frequency: Option<((usize, usize), &crate::frequency::FirstBending)>,
 ) -> Result<RunMeshError, MeshTwinSkip> {
     let twin = mesh_twin_model(path, sets, base, dt).map_err(MeshTwinSkip::Failed)?;
     if let Some(limit) = max_dofs.filter(|&l| twin.n_eq > l) {
         return Err(MeshTwinSkip::Failed(too_large_for_auto(&twin, limit)));
     }
     let r = run_twin(&twin, ctx)?;
-    compare_twin(base, hist, &twin, &r)
+    let mut e = compare_twin(base, hist, &twin, &r)?;
+    if let Some(((k, comp), fb)) = frequency {
+        let x: Vec<f64> = r.hist.values[k].iter().map(|s| s[comp]).collect();
+        let step = r.hist.t.get(1).map_or(0.0, |t1| t1 - r.hist.t[0]);
+        let refined = crate::frequency::first_bending(&twin, (k, comp), &x, step);
+        e.first_bending = frequency_mesh_error(fb, &refined);
+    }
+    Ok(e)
+}
+
+/// The mesh error of a first bending frequency from its value on the base mesh `base`
+/// and on twice the elements `refined`: the larger relative change of the measured line
+/// and of the rotating-frame eigenvalue (where both runs have it), times Richardson's
+/// 4/3 ([`HISTORY_ORDER`]; a beam's frequencies converge at order 2 or faster, so this
+/// reads high rather than low). None where neither is finite in both. The measured
+/// line moves in steps of the spectrum's interpolation where the mesh changes it less
+/// than its resolution, so the eigenvalue, exact for the model, is the finer reading.
+pub fn frequency_mesh_error(
+    base: &crate::frequency::FirstBending,
+    refined: &crate::frequency::FirstBending,
+) -> Option<f64> {
+    let rel =
+        |a: f64, b: f64| (a.is_finite() && b.is_finite() && a != 0.0).then(|| ((b - a) / a).abs());
+    let line = rel(base.hz, refined.hz);
+    let eig = match (base.eig_hz, refined.eig_hz) {
+        (Some(a), Some(b)) => rel(a, b),
+        _ => None,
+    };
+    let richardson = 1.0 / (1.0 - 0.5f64.powi(HISTORY_ORDER));
+    match (line, eig) {
+        (Some(a), Some(b)) => Some(a.max(b) * richardson),
+        (Some(a), None) | (None, Some(a)) => Some(a * richardson),
+        (None, None) => None,
+    }
 }
 
 /// Why `--mesh-check auto` does not run `twin`.
@@ -936,6 +994,21 @@ pub fn history_mesh_error(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frequencys_mesh_error_is_its_larger_relative_change_times_four_thirds() {
+        use crate::frequency::FirstBending;
+        let fb = |hz: f64, eig: Option<f64>| FirstBending {
+            hz,
+            eig_hz: eig,
+            warnings: Vec::new(),
+        };
+        let e = frequency_mesh_error(&fb(10.0, Some(2.0)), &fb(9.9, Some(2.04))).unwrap();
+        assert!((e - 0.02 * 4.0 / 3.0).abs() < 1e-12, "{e}");
+        let e = frequency_mesh_error(&fb(10.0, None), &fb(10.3, Some(2.0))).unwrap();
+        assert!((e - 0.03 * 4.0 / 3.0).abs() < 1e-12, "{e}");
+        assert!(frequency_mesh_error(&fb(f64::NAN, None), &fb(1.0, None)).is_none());
+    }
 
     #[test]
     fn select_spreads_evenly_with_first_and_last() {
