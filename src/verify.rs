@@ -805,6 +805,12 @@ pub fn mesh_not_measured(why: &str) -> String {
 /// as much again or more; above it the error is reported not measured.
 pub const MESH_CHECK_AUTO_DOFS: usize = 20_000;
 
+/// Bytes a sensor history kept in memory takes per value (one component of one
+/// sample): the f64, and its share of the per-sample vector (24 bytes and an allocation
+/// of at least 32) for a one-component sensor, the worst case. A mesh twin's history,
+/// and a sampled variant's kept for its twin, are sized by it before they run.
+pub const HISTORY_BYTES_PER_VALUE: f64 = 64.0;
+
 /// Variants of a sweep whose mesh error `--mesh-check auto` measures: spread over the
 /// campaign as `--verify` spreads its own ([`select`]: the first, the middle, the last).
 /// A campaign varies its parameters smoothly in most studies, so its ends and middle

@@ -497,3 +497,44 @@ fn mesh_checks_of_every_variant_that_would_not_fit_in_memory_are_refused_before_
     );
     fails_with(&out, &["--mesh-check keeps", "this machine's", "auto"]);
 }
+
+/// The same with the mesh check: its twin's history is held beside the run's (64 bytes a
+/// value), so a `run --json` whose JSON alone would fit in 0.8 of the memory, but not
+/// with the twin's history, is refused naming the check and how to drop it.
+#[test]
+fn a_run_whose_json_and_mesh_twin_would_not_fit_in_memory_is_refused_naming_the_check() {
+    let Some(mem) = latdyn::model::limits::memory_bytes() else {
+        eprintln!("skipped: the machine's memory is unknown");
+        return;
+    };
+    let m = latdyn::model::load(&root().join("models/rotating_cantilever.toml"), &[]).unwrap();
+    let per_sample: usize = m
+        .sensors
+        .iter()
+        .map(|x| latdyn::sensors::components(&x.kind).len() + 1)
+        .sum();
+    // samples every 0.01 s (output_dt = max(dt, 0.01))
+    let samples = 0.8 * mem as f64 / 100.0 / per_sample as f64;
+    let t_end = format!("t_end={}", (samples * 0.01).ceil());
+    let limit = format!(
+        "output_values={:e},steps=1e12",
+        (3.0 * samples * per_sample as f64).ceil()
+    );
+    let out = latdyn_env(
+        &[
+            "run",
+            "models/rotating_cantilever.toml",
+            "--set",
+            &t_end,
+            "--set",
+            "dt=0.01",
+            "--json",
+        ],
+        &[("LATDYN_LIMITS", &limit)],
+    );
+    fails_with(
+        &out,
+        &["`--json` would hold", "mesh check", "--mesh-check never"],
+    );
+    assert!(out.stdout.is_empty());
+}

@@ -158,7 +158,10 @@ const JSON_BYTES_PER_VALUE: f64 = 100.0;
 /// `output_values` limit (1e8) that is about 10 GB, and a machine with less memory
 /// aborted in the allocator (a probe in session 48, under a 3 GB address limit). Refused
 /// before the run where the object would not fit in the machine's memory.
-fn check_json_size(m: &latdyn::model::Model) -> anyhow::Result<()> {
+///
+/// With `twin` (the mesh check will run), the twin's history is counted too
+/// (`latdyn::verify::HISTORY_BYTES_PER_VALUE` each): it is held beside the run's.
+fn check_json_size(m: &latdyn::model::Model, twin: bool) -> anyhow::Result<()> {
     let Some(mem) = latdyn::model::limits::memory_bytes() else {
         return Ok(());
     };
@@ -171,18 +174,29 @@ fn check_json_size(m: &latdyn::model::Model) -> anyhow::Result<()> {
     let dt_out = if s.output_dt > 0.0 { s.output_dt } else { s.dt };
     let samples = latdyn::model::output_intervals(s.t_end, dt_out) + 1;
     let values = samples as f64 * components as f64;
-    let bytes = values * JSON_BYTES_PER_VALUE;
+    let per_value = JSON_BYTES_PER_VALUE
+        + if twin {
+            latdyn::verify::HISTORY_BYTES_PER_VALUE
+        } else {
+            0.0
+        };
+    let bytes = values * per_value;
     if bytes <= mem as f64 {
         return Ok(());
     }
     Err(anyhow!(
         "{}: `--json` would hold {} sensor values in memory, about {:.1} GB at {} bytes \
-         each, more than this machine's {:.1} GiB: write the histories to a file (`-o \
+         each{}, more than this machine's {:.1} GiB: write the histories to a file (`-o \
          FILE.h5`, without `--json`) or sample less often (`[solver] output_dt`)",
         m.path,
         latdyn::model::limits::count(values),
         bytes / 1e9,
-        JSON_BYTES_PER_VALUE,
+        per_value,
+        if twin {
+            " with the mesh check's history (`--mesh-check never` drops it)"
+        } else {
+            ""
+        },
         mem as f64 / f64::from(1u32 << 30)
     ))
 }
@@ -211,7 +225,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         m.solver.accuracy = Some(a);
     }
     if args.model.json {
-        check_json_size(&m)?;
+        check_json_size(&m, args.mesh_check != "never" && !m.elem_data.is_empty())?;
     }
     if let Some(note) = spread_note(&m) {
         eprintln!("{note}");

@@ -695,11 +695,6 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Bytes a kept sensor history takes per value (one component of one sample): the f64,
-/// and its share of the per-sample vector (24 bytes and an allocation of at least 32)
-/// for a one-component sensor, the worst case.
-const KEPT_BYTES_PER_VALUE: f64 = 64.0;
-
 /// The sampled variants' histories are kept in memory until their twins run, after the
 /// campaign (`--mesh-check always`: every variant's). Refused before anything runs where
 /// they would take more than half this machine's memory: the campaign's own values are
@@ -713,18 +708,19 @@ fn check_kept_histories(m: &latdyn::model::Model, kept: usize) -> anyhow::Result
             .iter()
             .map(|s| latdyn::sensors::components(&s.kind).len() as f64)
             .sum::<f64>();
-    let bytes = per_variant * kept as f64 * KEPT_BYTES_PER_VALUE;
+    let bytes = per_variant * kept as f64 * latdyn::verify::HISTORY_BYTES_PER_VALUE;
     if bytes <= 0.5 * mem as f64 {
         return Ok(());
     }
     bail!(
         "{}: --mesh-check keeps the histories of {kept} variant(s) until their twins run, {} \
-         values, about {:.1} GB at {KEPT_BYTES_PER_VALUE} bytes each, more than half this \
-         machine's {:.1} GiB: `--mesh-check auto` measures three, or sample less often \
+         values, about {:.1} GB at {} bytes each, more than half this machine's {:.1} \
+         GiB: `--mesh-check auto` measures three, or sample less often \
          (`[solver] output_dt`)",
         m.path,
         latdyn::model::limits::count(per_variant * kept as f64),
         bytes / 1e9,
+        latdyn::verify::HISTORY_BYTES_PER_VALUE,
         mem as f64 / f64::from(1u32 << 30)
     )
 }
