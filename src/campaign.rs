@@ -1209,41 +1209,76 @@ pub fn probe(
         if c.accuracy.is_some() {
             m.solver.accuracy = c.accuracy;
         }
-        let compile_s = t0.elapsed().as_secs_f64();
-        let t_end = m.solver.t_end;
-        // two runs, to half and to all of the probe span: wall = setup + rate × t, so
-        // the setup (integrator, initial state) is not extrapolated with the time
-        let mut runs = Vec::new();
-        for f in [fraction / 2.0, fraction] {
-            m.solver.t_end = t_end * f;
-            let t1 = std::time::Instant::now();
-            let (_, stats, err) = crate::solver::dynamics::run_with(&m, None, None, |_, _| {});
-            runs.push((m.solver.t_end, t1.elapsed().as_secs_f64(), stats.steps, err));
-        }
-        let (ta, wa, _, _) = runs[0];
-        let (tb, wb, steps, ref err) = runs[1];
-        let rate = if tb > ta && wb > wa {
-            (wb - wa) / (tb - ta)
-        } else if tb > 0.0 {
-            wb / tb
-        } else {
-            0.0
-        };
-        let setup = (wa - rate * ta).max(0.0);
-        out.push(Probe {
-            index: g,
-            t_probe: tb,
-            t_end,
-            compile_s,
-            wall_s: wb,
-            steps,
-            status: err
-                .as_ref()
-                .map_or_else(|| "completed".to_string(), |e| e.to_string()),
-            per_variant_s: compile_s + setup + rate * t_end,
-        });
+        out.push(probe_model(m, g, t0.elapsed().as_secs_f64(), fraction));
     }
     Ok(out)
+}
+
+/// [`probe`] of the mesh twin of variant `g` (every beam's elements doubled at the
+/// variant's step, [`crate::verify::mesh_twin_model`]), which `sweep --mesh-check` runs
+/// after the campaign for a sampled variant: its cost beside the variants'. Under an
+/// accuracy target the twin runs at the step the target chose, which the probe does not
+/// know: it takes the model's `dt`. None where the twin has more free coordinates than
+/// `max_dofs` (`--mesh-check auto` does not run it).
+pub fn probe_twin(
+    c: &crate::ensemble::Campaign,
+    g: usize,
+    fraction: f64,
+    max_dofs: Option<usize>,
+) -> Result<Option<Probe>, crate::ensemble::EnsembleError> {
+    let t0 = std::time::Instant::now();
+    let mut sets = c.base.clone();
+    sets.extend(c.variants[g].iter().cloned());
+    let named = |e: String| crate::ensemble::EnsembleError::variant(g, &c.variants[g], e);
+    let m = crate::model::load(&c.model_path, &sets).map_err(|e| named(e.to_string()))?;
+    let twin =
+        crate::verify::mesh_twin_model(&c.model_path, &sets, &m, m.solver.dt).map_err(named)?;
+    if max_dofs.is_some_and(|l| twin.n_eq > l) {
+        return Ok(None);
+    }
+    Ok(Some(probe_model(
+        twin,
+        g,
+        t0.elapsed().as_secs_f64(),
+        fraction,
+    )))
+}
+
+/// Time `m` (variant `g`, compiled in `compile_s`) over `fraction` / 2 and `fraction` of
+/// its t_end and extrapolate to the whole run (see [`probe`]).
+fn probe_model(mut m: crate::model::Model, g: usize, compile_s: f64, fraction: f64) -> Probe {
+    let t_end = m.solver.t_end;
+    // two runs, to half and to all of the probe span: wall = setup + rate × t, so
+    // the setup (integrator, initial state) is not extrapolated with the time
+    let mut runs = Vec::new();
+    for f in [fraction / 2.0, fraction] {
+        m.solver.t_end = t_end * f;
+        let t1 = std::time::Instant::now();
+        let (_, stats, err) = crate::solver::dynamics::run_with(&m, None, None, |_, _| {});
+        runs.push((m.solver.t_end, t1.elapsed().as_secs_f64(), stats.steps, err));
+    }
+    let (ta, wa, _, _) = runs[0];
+    let (tb, wb, steps, ref err) = runs[1];
+    let rate = if tb > ta && wb > wa {
+        (wb - wa) / (tb - ta)
+    } else if tb > 0.0 {
+        wb / tb
+    } else {
+        0.0
+    };
+    let setup = (wa - rate * ta).max(0.0);
+    Probe {
+        index: g,
+        t_probe: tb,
+        t_end,
+        compile_s,
+        wall_s: wb,
+        steps,
+        status: err
+            .as_ref()
+            .map_or_else(|| "completed".to_string(), |e| e.to_string()),
+        per_variant_s: compile_s + setup + rate * t_end,
+    }
 }
 
 /// Which variants a probe of `k` runs among `n`: spread evenly, first and last included.

@@ -482,6 +482,61 @@ fn plan_lists_each_variants_shard_as_the_sweep_writes_it_and_a_probe_cost() {
     assert!((theta - (0.3 + 4.0 * 2.2 / 9.0)).abs() < 1e-12, "{theta}");
 }
 
+/// The plan charges the mesh twins the sweep will run (`--mesh-check`, auto: the first,
+/// middle and last variant) at the cost of one probed twin, each to its shard's task;
+/// `never` charges none.
+#[test]
+fn plan_charges_the_mesh_twins_of_the_sampled_variants_to_their_shards() {
+    let base = &[
+        "models/rotating_cantilever.toml",
+        "--set",
+        "t_end=0.5",
+        "--set",
+        "elements=10",
+        "--vary",
+        "omega=1:3:5",
+    ];
+    let plan = |extra: &[&str]| {
+        let mut a = vec!["--plan", "--shards", "2", "--probe", "1", "--json"];
+        a.extend_from_slice(extra);
+        let o = run(sweep(base, &a));
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        json(&o)
+    };
+    let p = plan(&[]);
+    let e = &p["estimate"];
+    let m = &e["mesh_check"];
+    assert_eq!(m["sampled"], serde_json::json!([0, 2, 4]), "{e}");
+    assert_eq!(m["twin_probe"]["index"], 2);
+    assert_eq!(m["twin_probe"]["status"], "completed");
+    let twin = m["twin_per_variant_s"].as_f64().unwrap();
+    let per_variant = p["probe"]["per_variant_s"].as_f64().unwrap();
+    assert!(twin > 0.0 && per_variant > 0.0, "{e}");
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1.0);
+    assert!(close(m["cpu_s"].as_f64().unwrap(), 3.0 * twin), "{e}");
+    assert!(
+        close(e["cpu_s"].as_f64().unwrap(), 5.0 * per_variant + 3.0 * twin),
+        "{e}"
+    );
+    // shard 1 holds variants 0, 2, 4 and all three twins
+    assert!(
+        close(
+            e["per_task_wall_s"].as_f64().unwrap(),
+            3.0 * per_variant + 3.0 * twin
+        ),
+        "{e}"
+    );
+    let p = plan(&["--mesh-check", "never"]);
+    let e = &p["estimate"];
+    assert_eq!(e["mesh_check"]["mode"], "never");
+    assert_eq!(e["mesh_check"]["twin_probe"], serde_json::Value::Null);
+    let per_variant = p["probe"]["per_variant_s"].as_f64().unwrap();
+    assert!(
+        close(e["cpu_s"].as_f64().unwrap(), 5.0 * per_variant),
+        "{e}"
+    );
+}
+
 #[test]
 fn merge_of_more_shards_than_variants_skips_the_empty_ones_and_equals_the_single_sweep() {
     let dir = scratch("merge_empty");

@@ -344,7 +344,7 @@ pub(crate) struct SweepArgs {
     /// beam's elements doubled at its step: `auto` (default) 3 variants spread over the
     /// campaign (first, middle, last) where the doubled model has at most 20 000 free
     /// coordinates, `always` every variant at any size, `never` none
-    #[arg(long, value_parser = ["auto", "always", "never"], conflicts_with = "plan")]
+    #[arg(long, value_parser = ["auto", "always", "never"])]
     pub(crate) mesh_check: Option<String>,
     /// with --plan: the number of shards (array tasks) to plan for
     #[arg(long, value_name = "N", default_value_t = 1, requires = "plan", value_parser = parse_shards)]

@@ -938,6 +938,35 @@ pub(crate) fn sweep_plan(
         .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))));
     let per_shard = n.div_ceil(shards);
     let threads = args.threads.unwrap_or(1);
+    // the mesh twins the sweep runs after its variants (`--mesh-check`): one probed (the
+    // middle sampled variant), its cost charged to each sampled variant's shard
+    let mesh_plan =
+        latdyn::verify::MeshSample::plan(args.mesh_check.as_deref().unwrap_or("auto"), n)
+            .filter(|_| !m0.elem_data.is_empty());
+    let twin = match &mesh_plan {
+        Some(plan) if !plan.variants.is_empty() => {
+            let g = plan.variants[plan.variants.len() / 2];
+            campaign::probe_twin(c, g, PROBE_FRACTION, plan.max_dofs)
+                .map_err(|e| origin.name(e, &c.variants))?
+        }
+        _ => None,
+    };
+    let twin_s = twin
+        .as_ref()
+        .filter(|x| x.status == "completed")
+        .map(|x| x.per_variant_s);
+    let sampled = mesh_plan.as_ref().map_or(&[][..], |p| &p.variants[..]);
+    // the longest task: its variants and its twins, spread over its threads
+    let per_task = mean.map(|x| {
+        (0..shards)
+            .map(|k| {
+                let variants = (0..n).filter(|g| g % shards == k).count() as f64;
+                let twins = sampled.iter().filter(|g| *g % shards == k).count() as f64;
+                (variants * x + twins * twin_s.unwrap_or(0.0)) / threads as f64
+            })
+            .fold(0.0, f64::max)
+    });
+    let twins_cpu = twin_s.map_or(0.0, |t| t * sampled.len() as f64);
     let table: Vec<serde_json::Value> = c
         .variants
         .iter()
@@ -970,8 +999,15 @@ pub(crate) fn sweep_plan(
         },
         "estimate": {
             "threads_per_task": threads,
-            "cpu_s": mean.map(|x| x * n as f64),
-            "per_task_wall_s": mean.map(|x| x * per_shard as f64 / threads as f64),
+            "cpu_s": mean.map(|x| x * n as f64 + twins_cpu),
+            "per_task_wall_s": per_task,
+            "mesh_check": {
+                "mode": mesh_plan.as_ref().map_or("never", |p| p.mode.as_str()),
+                "sampled": sampled,
+                "twin_probe": twin,
+                "twin_per_variant_s": twin_s,
+                "cpu_s": twins_cpu,
+            },
             "output_values": values_per_variant * n,
             "output_mb_uncompressed": (values_per_variant * n) as f64 * 8.0 / 1e6,
         },
@@ -992,12 +1028,36 @@ pub(crate) fn sweep_plan(
                 x.index, x.steps, x.t_probe, x.wall_s, x.status, x.per_variant_s
             );
         }
-        if let Some(mean) = mean {
+        if let Some(x) = &twin {
             println!(
-                "estimate: {:.1} CPU-s in all; {:.1} s per task on {threads} thread(s), plus \
-                 the merge",
-                mean * n as f64,
-                mean * per_shard as f64 / threads as f64
+                "probe of the mesh twin of variant {} ({} → {} elements): {} steps to t = \
+                 {:.6} in {:.4} s ({}), about {:.4} s per twin",
+                x.index,
+                m0.elements.len(),
+                m0.elements.len() * latdyn::solver::MESH_REFINE,
+                x.steps,
+                x.t_probe,
+                x.wall_s,
+                x.status,
+                x.per_variant_s
+            );
+        }
+        if let (Some(mean), Some(task)) = (mean, per_task) {
+            let twins = match twin_s {
+                Some(_) => format!(
+                    " ({twins_cpu:.1} of them the mesh twins of variant(s) {})",
+                    sampled
+                        .iter()
+                        .map(|g| g.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                None => String::new(),
+            };
+            println!(
+                "estimate: {:.1} CPU-s in all{twins}; {task:.1} s for the longest task on \
+                 {threads} thread(s), plus the merge",
+                mean * n as f64 + twins_cpu,
             );
         }
     }
