@@ -1020,11 +1020,8 @@ pub fn resume_until(
 ) -> Result<Resume, MergeError> {
     let f = CampaignFile::open(target.path())?;
     let unmeasured = |row: usize, s: &VariantStatus| {
-        mesh.is_some_and(|m| {
-            f.global_index
-                .get(row)
-                .is_some_and(|g| m.variants.contains(g))
-        }) && s.mesh_error_estimate.is_nan()
+        mesh.is_some_and(|m| f.global_index.get(row).is_some_and(|g| m.samples(*g)))
+            && s.mesh_error_estimate.is_nan()
             && !s.warnings.contains("mesh error not measured")
     };
     let rerun: Vec<bool> = f

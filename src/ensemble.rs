@@ -1079,7 +1079,7 @@ fn run_core(
         .global_index
         .iter()
         .zip(&p.models)
-        .map(|(g, m)| mesh.is_some_and(|s| s.variants.contains(g)) && !m.elem_data.is_empty())
+        .map(|(g, m)| mesh.is_some_and(|s| s.samples(*g)) && !m.elem_data.is_empty())
         .collect();
     type Kept = (
         usize,

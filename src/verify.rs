@@ -821,8 +821,8 @@ pub const MESH_SAMPLE: usize = 3;
 /// Which variants of a sweep get a mesh twin (`sweep --mesh-check`).
 #[derive(Clone, Debug, Default)]
 pub struct MeshSample {
-    /// global indices of the variants measured (any shard's; each shard measures those
-    /// it runs, so merged shards carry the figures of the single sweep)
+    /// global indices of the variants measured, ascending (any shard's; each shard
+    /// measures those it runs, so merged shards carry the figures of the single sweep)
     pub variants: Vec<usize>,
     /// twins above this many free coordinates are not run (`auto`); None: every one
     pub max_dofs: Option<usize>,
@@ -831,6 +831,12 @@ pub struct MeshSample {
 }
 
 impl MeshSample {
+    /// Whether variant `g` (global index) is sampled; a search, as `always` samples a
+    /// million.
+    pub fn samples(&self, g: usize) -> bool {
+        self.variants.binary_search(&g).is_ok()
+    }
+
     /// The plan of `--mesh-check MODE` for a campaign of `n` variants: `auto`
     /// [`MESH_SAMPLE`] of them spread by [`select`] (all when fewer) up to
     /// [`MESH_CHECK_AUTO_DOFS`], `always` every one at any size, `never` none.

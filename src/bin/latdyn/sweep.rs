@@ -725,6 +725,13 @@ fn check_kept_histories(m: &latdyn::model::Model, kept: usize) -> anyhow::Result
     )
 }
 
+/// Variant indices for a message: the first 20 (`--mesh-check always` samples every
+/// variant, up to a million).
+fn indices(v: &[usize]) -> String {
+    let shown: Vec<String> = v.iter().take(20).map(|g| g.to_string()).collect();
+    shown.join(", ") + if v.len() > 20 { ", …" } else { "" }
+}
+
 /// What a sweep's `--mesh-check` measured (`mesh`: the sampled variants of this shard
 /// and the twins' wall time), said on stderr, with the `mesh_check` object of
 /// `sweep --json`. The campaign's rows that were not sampled carry no figure: where a
@@ -776,12 +783,6 @@ fn mesh_summary(
         .filter(|(_, e)| e.estimate > limit)
         .map(|(g, _)| *g)
         .collect();
-    let indices = |v: &[usize]| -> String {
-        v.iter()
-            .map(|g| g.to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
     let here: Vec<usize> = checks.iter().map(|c| c.global_index).collect();
     match worst {
         Some((g, e)) => {
@@ -957,12 +958,16 @@ pub(crate) fn sweep_plan(
         .map(|x| x.per_variant_s);
     let sampled = mesh_plan.as_ref().map_or(&[][..], |p| &p.variants[..]);
     // the longest task: its variants and its twins, spread over its threads
+    // (one pass each: shards and variants are both up to a million)
+    let mut twins_in = vec![0usize; shards];
+    for g in sampled {
+        twins_in[g % shards] += 1;
+    }
     let per_task = mean.map(|x| {
         (0..shards)
             .map(|k| {
-                let variants = (0..n).filter(|g| g % shards == k).count() as f64;
-                let twins = sampled.iter().filter(|g| *g % shards == k).count() as f64;
-                (variants * x + twins * twin_s.unwrap_or(0.0)) / threads as f64
+                let variants = n / shards + usize::from(k < n % shards);
+                (variants as f64 * x + twins_in[k] as f64 * twin_s.unwrap_or(0.0)) / threads as f64
             })
             .fold(0.0, f64::max)
     });
@@ -980,7 +985,7 @@ pub(crate) fn sweep_plan(
         })
         .collect();
     let counts: Vec<usize> = (0..shards)
-        .map(|k| (0..n).filter(|g| g % shards == k).count())
+        .map(|k| n / shards + usize::from(k < n % shards))
         .collect();
     let v = serde_json::json!({
         "campaign_id": info.id,
@@ -1046,11 +1051,7 @@ pub(crate) fn sweep_plan(
             let twins = match twin_s {
                 Some(_) => format!(
                     " ({twins_cpu:.1} of them the mesh twins of variant(s) {})",
-                    sampled
-                        .iter()
-                        .map(|g| g.to_string())
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    indices(sampled)
                 ),
                 None => String::new(),
             };
