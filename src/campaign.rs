@@ -985,12 +985,6 @@ pub struct Resume {
 /// missing in a merge) and reopens the file with their rows cleared (state pending, NaN
 /// samples); every completed row keeps its stored bytes. A variant that does not compile
 /// is named as `origin` says (see [`crate::ensemble::Origin`]).
-///
-/// With `mesh`, a completed variant it samples whose mesh error is not in the file (NaN,
-/// and no warning that it could not be measured: the sweep stopped before its twin ran)
-/// is run again too, so that it gets its twin: the resumed file then holds what the
-/// sweep run whole holds (the run is deterministic, its samples are rewritten as they
-/// were).
 pub fn resume(
     target: OutputTarget,
     c: &crate::ensemble::Campaign,
@@ -1010,6 +1004,12 @@ pub fn resume(
 /// [`resume`], its preparation stopped by `stop` (a signal's flag) between two variants
 /// ([`crate::ensemble::prepare_rows_until`]): then [`MergeError::Interrupted`], and the
 /// file is left as it was (it is only reopened for writing after the preparation).
+///
+/// With `mesh` (`sweep --mesh-check`), a completed variant it samples whose mesh error is
+/// not in the file (NaN, and no warning that it could not be measured: the sweep stopped
+/// before its twin ran) is run again too, so that it gets its twin: the resumed file then
+/// holds what the sweep run whole holds (the run is deterministic, its samples are
+/// rewritten as they were).
 pub fn resume_until(
     target: OutputTarget,
     c: &crate::ensemble::Campaign,
