@@ -904,6 +904,17 @@ impl Stage {
             make: None,
         }
     }
+
+    /// The context of one run on its own (a single run, a mesh twin, a refined run of
+    /// `--verify`): stopped by `stop`, its element stage made by this stage, no shared
+    /// symbolic analysis.
+    pub fn run_context<'a>(&self, stop: &'a AtomicBool) -> dynamics::RunContext<'a> {
+        dynamics::RunContext {
+            stop: Some(stop),
+            symbolic: None,
+            eval: self.make.as_ref().map(|make| make()),
+        }
+    }
 }
 
 /// Run the prepared variants. `stop` ends the campaign early (Ctrl-C); `progress` is
@@ -1370,11 +1381,7 @@ fn run_core(
                         .map(|(v, hist, dt, fb)| {
                             let mut sets = c.base.clone();
                             sets.extend(c.variants[p.global_index[*v]].iter().cloned());
-                            let ctx = dynamics::RunContext {
-                                stop: Some(stop),
-                                symbolic: None,
-                                eval: stage.make.as_ref().map(|make| make()),
-                            };
+                            let ctx = stage.run_context(stop);
                             let m = &p.models[*v];
                             let frequency = c
                                 .frequency_sensor

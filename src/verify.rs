@@ -397,11 +397,7 @@ fn check_one(
     }
     let t0 = Instant::now();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        let ctx = dynamics::RunContext {
-            stop: Some(stop),
-            symbolic: None,
-            eval: stage.make.as_ref().map(|make| make()),
-        };
+        let ctx = stage.run_context(stop);
         dynamics::run_in(&r, &ctx, |_, _| {})
     }));
     out.wall_s = t0.elapsed().as_secs_f64();

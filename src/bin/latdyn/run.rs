@@ -252,7 +252,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         let handle = twin.as_ref().map(|t| {
             announce_twin(t, &m, "alongside the run");
             let (stop, stage) = (stop.as_ref(), &stage);
-            scope.spawn(move || latdyn::verify::run_twin(t, &run_context(stop, stage)))
+            scope.spawn(move || latdyn::verify::run_twin(t, &stage.run_context(stop)))
         });
         let on_sample = |t: f64, vals: &[Vec<f64>]| {
             let i = n_samples;
@@ -271,7 +271,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 stop.store(true, Ordering::SeqCst);
             }
         };
-        let ctx = run_context(&stop, &stage);
+        let ctx = stage.run_context(&stop);
         let (hist, stats, err) = latdyn::solver::dynamics::run_in(&m, &ctx, on_sample);
         // the run's own time, not its wait for the twin
         let wall = t0.elapsed().as_secs_f64();
@@ -308,7 +308,7 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 let dt = stats.accuracy_dt.unwrap_or(m.solver.dt);
                 if let Some(t) = prepare_twin(args, &m, dt, &mut check) {
                     announce_twin(&t, &m, "after the run");
-                    let r = latdyn::verify::run_twin(&t, &run_context(&stop, &stage));
+                    let r = latdyn::verify::run_twin(&t, &stage.run_context(&stop));
                     check.measured(&m, &hist, &t, r);
                 }
             }
@@ -472,18 +472,6 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(e) if interrupted => Err(fail(EXIT_INTERRUPTED, format!("{}: {e}{written}", m.path))),
         Some(e) => Err(fail(EXIT_FAILED, format!("{}: {e}", m.path))),
         None => Ok(()),
-    }
-}
-
-/// A run's context: stopped by `stop`, its element stage made by `stage`.
-fn run_context<'a>(
-    stop: &'a std::sync::atomic::AtomicBool,
-    stage: &latdyn::ensemble::Stage,
-) -> latdyn::solver::dynamics::RunContext<'a> {
-    latdyn::solver::dynamics::RunContext {
-        stop: Some(stop),
-        symbolic: None,
-        eval: stage.make.as_ref().map(|make| make()),
     }
 }
 

@@ -270,11 +270,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     // --mesh-check: the variants whose mesh twin runs after the campaign, chosen over
     // the whole campaign so that shards measure the rows the single sweep would (none
     // where the model has no beams: the variants share its topology)
-    let mesh_plan = latdyn::verify::MeshSample::plan(
-        args.mesh_check.as_deref().unwrap_or("auto"),
-        c.variants.len(),
-    )
-    .filter(|_| !base_model.elem_data.is_empty());
+    let mesh_plan = mesh_plan(args, c.variants.len(), &base_model);
     if let Some(plan) = &mesh_plan {
         check_kept_histories(&base_model, plan.variants.len())?;
     }
@@ -725,6 +721,17 @@ fn check_kept_histories(m: &latdyn::model::Model, kept: usize) -> anyhow::Result
     )
 }
 
+/// The variants `--mesh-check` (default `auto`) samples among `n`, none where the model
+/// `m` has no beams (the variants share its topology).
+fn mesh_plan(
+    args: &SweepArgs,
+    n: usize,
+    m: &latdyn::model::Model,
+) -> Option<latdyn::verify::MeshSample> {
+    latdyn::verify::MeshSample::plan(args.mesh_check.as_deref().unwrap_or("auto"), n)
+        .filter(|_| !m.elem_data.is_empty())
+}
+
 /// Variant indices for a message: the first 20 (`--mesh-check always` samples every
 /// variant, up to a million).
 fn indices(v: &[usize]) -> String {
@@ -941,9 +948,7 @@ pub(crate) fn sweep_plan(
     let threads = args.threads.unwrap_or(1);
     // the mesh twins the sweep runs after its variants (`--mesh-check`): one probed (the
     // middle sampled variant), its cost charged to each sampled variant's shard
-    let mesh_plan =
-        latdyn::verify::MeshSample::plan(args.mesh_check.as_deref().unwrap_or("auto"), n)
-            .filter(|_| !m0.elem_data.is_empty());
+    let mesh_plan = mesh_plan(args, n, m0);
     let twin = match &mesh_plan {
         Some(plan) if !plan.variants.is_empty() => {
             let g = plan.variants[plan.variants.len() / 2];
