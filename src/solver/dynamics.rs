@@ -626,6 +626,22 @@ pub struct History {
     pub values: Vec<Vec<Vec<f64>>>,
 }
 
+/// One run `--accuracy` made (`RunStats::accuracy_history`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct AccuracyRun {
+    pub dt: f64,
+    /// its error estimate: at its end, or for a run stopped early, what it projects for
+    /// the end (see `stopped_at`)
+    pub estimate: f64,
+    pub steps: usize,
+    pub newton: usize,
+    /// the time it started from: 0, or where it resumed the run before it
+    pub from: f64,
+    /// where a run whose error so far already exceeded `ACCURACY_STOP` times the target
+    /// was stopped, and that error
+    pub stopped_at: Option<(f64, f64)>,
+}
+
 #[derive(Clone, Debug, Default)]
 pub struct RunStats {
     pub steps: usize,
@@ -637,9 +653,8 @@ pub struct RunStats {
     pub accuracy_steps: usize,
     pub accuracy_newton_iterations: usize,
     pub accuracy_dt: Option<f64>,
-    /// With an accuracy target: each run made, in order: (step, estimate, steps, the
-    /// time it started from: 0, or where it resumed the run before it)
-    pub accuracy_history: Vec<(f64, f64, usize, f64)>,
+    /// With an accuracy target: each run made, in order
+    pub accuracy_history: Vec<AccuracyRun>,
     pub newton_iterations: usize,
     pub times: StageTimes,
     /// Largest growth of the energy balance (kinetic + strain + gravity energy − driver
@@ -3082,7 +3097,7 @@ async fn run_accuracy(
     }
     let mut h = accuracy_step(&m, model.solver.dt);
     let mut last: Option<(f64, f64)> = None;
-    let (mut runs, mut steps, mut newton) = (0usize, 0usize, 0usize);
+    let mut runs = 0usize;
     let mut history = Vec::new();
     let n_out = output_times(&m).len();
     let every = n_out.div_ceil(ACCURACY_CHECKPOINTS).max(1);
@@ -3091,21 +3106,18 @@ async fn run_accuracy(
     let mut resume: Option<(Checkpoint, History)> = None;
     let mut kept: Vec<Checkpoint> = Vec::new();
     let mut may_resume = true;
-    // the last run's sensors' estimate
-    let mut last_sensor: Option<(f64, f64, f64)> = None;
+    // the last run's step, sensors' estimate (a stopped run's projected), loads' and
+    // drives' error, and sensors' estimate so far
+    let mut last_sensor: Option<(f64, f64, f64, f64)> = None;
     // how many runs in a row the sensors' estimate did not fall with the step
     let mut no_fall = 0usize;
     let result = loop {
         m.solver.dt = h;
         m.solver.dt_max = m.solver.dt_max.max(h);
-        let mut keep = Checkpoints {
-            every,
-            budget: ACCURACY_CHECKPOINT_BYTES,
-            list: match &resume {
-                Some((ck, _)) => kept.drain(..).filter(|c| c.samples <= ck.samples).collect(),
-                None => Vec::new(),
-            },
-        };
+        let mut keep = Checkpoints::new(every, ACCURACY_CHECKPOINT_BYTES);
+        if let Some((ck, _)) = &resume {
+            keep.list = kept.drain(..).filter(|c| c.samples <= ck.samples).collect();
+        }
         let from = resume.as_ref().map(|(ck, prefix)| (ck, prefix));
         let (t_from, base_steps, base_newton) = from.map_or((0.0, 0, 0), |(ck, _)| {
             (
@@ -3114,6 +3126,13 @@ async fn run_accuracy(
                 ck.integ.stats.newton_iterations,
             )
         });
+        // a run that cannot be followed by another (the last allowed, or at the
+        // smallest step) goes to its end, and so does the first (see `ACCURACY_STOP`)
+        let span = m.solver.t_end - t_from;
+        if runs > 0 && runs + 1 < ACCURACY_MAX_RUNS && h > m.solver.dt_min * (1.0 + 1e-9) {
+            keep.stop_above = ACCURACY_STOP * tol;
+            keep.stop_from = t_from + ACCURACY_STOP_FROM * span;
+        }
         // boxed: each run is a member's run, awaited by this one
         let r = Box::pin(run_fixed(
             &m,
@@ -3125,20 +3144,32 @@ async fn run_accuracy(
             |_, _| {},
         ))
         .await;
-        kept = keep.list;
+        let stopped = keep.stopped;
         let resumed = resume.take().is_some();
         runs += 1;
-        let run_steps = r.1.steps.saturating_sub(base_steps);
-        steps += run_steps;
-        newton += r.1.newton_iterations.saturating_sub(base_newton);
-        // a load the steps miss drives a response they miss: its share counts as error
-        let err =
-            r.1.time_error_estimate
-                .unwrap_or(f64::INFINITY)
-                .max(load_and_drive_error(&r.1));
-        history.push((h, err, run_steps, t_from));
+        // a run stopped early stands for the whole run by its error so far grown over
+        // the time it has left as it grew over the run's second half so far
+        let growth = stopped.map(|(t, e)| stop_growth(&keep.so_far, t_from, t, e));
+        let whole = |e: f64| match (stopped, growth) {
+            (Some((t, _)), Some(p)) => {
+                e * (span / (t - t_from).max(f64::MIN_POSITIVE))
+                    .max(1.0)
+                    .powf(p)
+            }
+            _ => e,
+        };
+        let err = whole(run_error(&r.1));
+        kept = keep.list;
+        history.push(AccuracyRun {
+            dt: h,
+            estimate: err,
+            steps: r.1.steps.saturating_sub(base_steps),
+            newton: r.1.newton_iterations.saturating_sub(base_newton),
+            from: t_from,
+            stopped_at: stopped,
+        });
         let interrupted = matches!(r.2, Some(DynamicsError::Interrupted { .. }));
-        if interrupted || (r.2.is_none() && err <= tol) {
+        if interrupted || (r.2.is_none() && err <= tol && stopped.is_none()) {
             break r;
         }
         // a resumed run whose error fell less than in proportion to its step: the error
@@ -3161,9 +3192,12 @@ async fn run_accuracy(
         // 1.6e-5 s). The sensors' estimate alone: a load the first run missed reads 1 as
         // its error (the rotating cantilever from dt = 0.08: the sensors 0, then 1.73 at
         // 6.7e-3 s and 0.12 at 4.2e-4 s)
-        let sensor_err = r.1.time_error_estimate.unwrap_or(f64::INFINITY);
+        // (a stopped run: saturated by its error so far, which the projection may pass)
+        let sensor_so_far = r.1.time_error_estimate.unwrap_or(f64::INFINITY);
+        let sensor_err = whole(sensor_so_far);
         let saturated = |e: f64| e >= ACCURACY_SATURATED;
-        let stuck = saturated(sensor_err) && last_sensor.is_some_and(|(_, e, _)| saturated(e));
+        let stuck =
+            saturated(sensor_so_far) && last_sensor.is_some_and(|(_, _, _, e)| saturated(e));
         // Two runs in a row whose sensors' estimate fell by an observed order under
         // `ACCURACY_NO_FALL_ORDER` (the scheme's is 2): the
         // error does not converge at these steps (a motion faster than any of them, or one
@@ -3184,8 +3218,8 @@ async fn run_accuracy(
             // response to other loads: its sensors say nothing of the step's convergence;
             // the rotating cantilever's 1 ms pulse from dt = 0.01, its load missed by
             // 100 % in the first two runs, 0.01 and 1.1e-3 s, then read 0.29 and 0.057)
-            Some((_, _, o0)) if o0 >= tol || other_err >= tol => {}
-            Some((h0, e0, _)) if h < h0 => {
+            Some((_, _, o0, _)) if o0 >= tol || other_err >= tol => {}
+            Some((h0, e0, _, _)) if h < h0 => {
                 if sensor_err.is_finite()
                     && sensor_err >= e0 * (h / h0).powf(ACCURACY_NO_FALL_ORDER)
                 {
@@ -3197,10 +3231,15 @@ async fn run_accuracy(
             _ => {}
         }
         let stalled = no_fall >= ACCURACY_NO_FALL_RUNS;
-        last_sensor = Some((h, sensor_err, other_err));
+        last_sensor = Some((h, sensor_err, other_err, sensor_so_far));
         if runs >= ACCURACY_MAX_RUNS || at_floor || stuck || stalled || (r.2.is_some() && runs > 1)
         {
             let mut r = r;
+            let mut err = err;
+            if stopped.is_some() {
+                r = finish_stopped(&m, ctx, &slot, sizes, &kept, r, &mut history).await;
+                err = run_error(&r.1);
+            }
             if r.2.is_none() {
                 let worst = r.1.worst_time_error().map_or(String::new(), |(k, _)| {
                     format!(" `{}`", model.sensors[k].name)
@@ -3212,7 +3251,7 @@ async fn run_accuracy(
                 } else if stalled {
                     let runs: Vec<String> = history[history.len() - 1 - ACCURACY_NO_FALL_RUNS..]
                         .iter()
-                        .map(|(h, e, _, _)| format!("{:.2} % at {h:.3e} s", 100.0 * e))
+                        .map(|r| format!("{:.2} % at {:.3e} s", 100.0 * r.estimate, r.dt))
                         .collect();
                     format!(
                         "; the estimate does not fall with the step ({}): the error does not \
@@ -3299,6 +3338,11 @@ async fn run_accuracy(
         let steps_next = (span / h_next - 1e-9).ceil();
         if steps_next > m.solver.max_steps as f64 {
             let mut r = r;
+            let mut err = err;
+            if stopped.is_some() {
+                r = finish_stopped(&m, ctx, &slot, sizes, &kept, r, &mut history).await;
+                err = run_error(&r.1);
+            }
             if r.2.is_none() {
                 let worst = r.1.worst_time_error().map_or(String::new(), |(k, _)| {
                     format!(" `{}`", model.sensors[k].name)
@@ -3323,8 +3367,8 @@ async fn run_accuracy(
         on_sample(*t, &vals);
     }
     stats.accuracy_runs = runs;
-    stats.accuracy_steps = steps;
-    stats.accuracy_newton_iterations = newton;
+    stats.accuracy_steps = history.iter().map(|r| r.steps).sum();
+    stats.accuracy_newton_iterations = history.iter().map(|r| r.newton).sum();
     stats.accuracy_dt = Some(h);
     stats.accuracy_history = history;
     (hist, stats, failure)
@@ -3367,6 +3411,70 @@ impl BalanceAccount {
     }
 }
 
+/// The exponent a stopped run's error so far is taken to grow with over the rest of it
+/// (`run_accuracy`): its growth between half its time so far and the stop, from the
+/// errors so far at its checkpoints (`so_far`), within `ACCURACY_STOP_GROWTH`; 1 where
+/// none was recorded that early. Measured (session 51) on the rotating cantilever's run
+/// at 3.1e-4 s: 1.09e-2 at 1.6 s, 2.24e-2 at 4.0 s, 3.83e-2 at 12 s (0.79, then 0.49).
+fn stop_growth(so_far: &[(f64, f64)], from: f64, t: f64, e: f64) -> f64 {
+    let half = from + 0.5 * (t - from);
+    so_far
+        .iter()
+        .rev()
+        .find(|(ti, ei)| *ti <= half && *ti > from && *ei > 0.0)
+        .map(|(ti, ei)| (e / ei).ln() / ((t - from) / (ti - from)).ln())
+        .filter(|p| p.is_finite())
+        .map_or(1.0, |p| {
+            p.clamp(ACCURACY_STOP_GROWTH.0, ACCURACY_STOP_GROWTH.1)
+        })
+}
+
+/// The error `run_accuracy` judges a run by: its sensors' estimate, or a larger share
+/// of its loads and drives (a load the steps miss drives a response they miss).
+fn run_error(st: &RunStats) -> f64 {
+    st.time_error_estimate
+        .unwrap_or(f64::INFINITY)
+        .max(load_and_drive_error(st))
+}
+
+/// Under `--accuracy`, a run stopped early ([`Checkpoints::stop_above`]) that is to be
+/// the result after all (no run may follow it): it goes on to its end at its step from
+/// the checkpoint it stopped at. Its steps are added to its line of `history`.
+async fn finish_stopped(
+    m: &Model,
+    ctx: &RunContext<'_>,
+    slot: &Arc<Slot>,
+    sizes: bool,
+    kept: &[Checkpoint],
+    r: RunResult,
+    history: &mut [AccuracyRun],
+) -> RunResult {
+    // the stop keeps its checkpoint whatever the memory budget; without it (not
+    // expected) the run is made again from t = 0
+    let at = kept.last().filter(|c| c.samples == r.0.t.len());
+    let base = at.map_or((0, 0), |c| {
+        (c.integ.stats.steps, c.integ.stats.newton_iterations)
+    });
+    let from = at.map(|c| (c, &r.0));
+    let done = Box::pin(run_fixed(
+        m,
+        ctx,
+        Arc::clone(slot),
+        sizes,
+        from,
+        None,
+        |_, _| {},
+    ))
+    .await;
+    if let Some(last) = history.last_mut() {
+        last.steps += done.1.steps.saturating_sub(base.0);
+        last.newton += done.1.newton_iterations.saturating_sub(base.1);
+        last.estimate = run_error(&done.1);
+        last.stopped_at = None;
+    }
+    done
+}
+
 /// A run's state at one of its output samples, from which a run at a smaller step can
 /// resume (`run_accuracy`).
 #[derive(Clone)]
@@ -3399,6 +3507,28 @@ struct Checkpoints {
     every: usize,
     budget: usize,
     list: Vec<Checkpoint>,
+    /// Under `--accuracy`: the error so far (the sensors' estimate relative to their
+    /// ranges so far, and the loads' and drives' share) past which the run stops at a
+    /// checkpoint from `stop_from` on (infinite: never); where it stopped, and that error
+    stop_above: f64,
+    stop_from: f64,
+    stopped: Option<(f64, f64)>,
+    /// the error so far at each checkpoint, with its time (where `stop_above` is finite)
+    so_far: Vec<(f64, f64)>,
+}
+
+impl Checkpoints {
+    fn new(every: usize, budget: usize) -> Self {
+        Checkpoints {
+            every,
+            budget,
+            list: Vec::new(),
+            stop_above: f64::INFINITY,
+            stop_from: 0.0,
+            stopped: None,
+            so_far: Vec::new(),
+        }
+    }
 }
 
 /// Strain energy a lock's snap back to its lock angle may add, as a share of the run's
@@ -3419,6 +3549,32 @@ const ACCURACY_SATURATED: f64 = 1.0;
 /// 0.006).
 const ACCURACY_NO_FALL_RUNS: usize = 2;
 const ACCURACY_NO_FALL_ORDER: f64 = 0.1;
+
+/// With `--accuracy`, a run whose error so far (relative to its sensors' ranges so far)
+/// passes this multiple of the target at a checkpoint stops there, unless no run may
+/// follow it: it cannot end within the target, and the steps after the stop would be
+/// made for nothing. Its error so far, grown over the time left as it grew so far
+/// (`stop_growth`), stands for the whole run's in predicting the next step. Twice the
+/// target, not once: ranges still growing (a spin-up) shrink a relative error later.
+/// The first run goes to its end: it is the cheapest of a sequence whose steps shrink,
+/// and its projection from a start whose ranges are still forming misled the next step
+/// (the spin-up beam at 1e-2 from dt = 0.04 s: 3 195 steps in all where its two whole
+/// runs take 1 559). Measured (session 51) from dt = 0.08 s on the rotating cantilever
+/// (10 elements), whose root moment's error grows nearly linearly (3.2e-3 of its range
+/// a second at 3.1e-4 s), its third run stopped at 3 s (at 4 s for 1e-2): steps in all
+/// 70 894, 116 379, 164 615 for 3e-2, 1e-2, 5e-3 (68 117, 130 824, 349 811 without
+/// stops); the blade and the spin-up beam from dt = 0.01 and 0.04 s unchanged.
+const ACCURACY_STOP: f64 = 2.0;
+/// With `--accuracy`, the share of a run's span before which it does not stop: the
+/// ranges its relative error is read against are still forming, and the projection
+/// from a short record over-reads (the rotating cantilever's third run stopped at 1.6 s
+/// of 12 projected 7.7e-2 for its 3.8e-2, and its fourth run took 1.47 times the
+/// steps it needed; 188 410 steps in all for 5e-3 with a tenth).
+const ACCURACY_STOP_FROM: f64 = 0.25;
+/// With `--accuracy`, the least and largest exponent a stopped run's error is taken to
+/// grow with over the rest of it (see `stop_growth`): from a vibration's amplitude error
+/// that levels off to a phase error that grows with time, and a little past it.
+const ACCURACY_STOP_GROWTH: (f64, f64) = (0.5, 1.5);
 
 /// With `--accuracy`, the most checkpoints a run keeps: a resumed run starts within
 /// 1/`ACCURACY_CHECKPOINTS` of the run from where its error began to matter.
@@ -3488,6 +3644,45 @@ fn keep_checkpoint(
             ends: ends.clone(),
         });
     }
+}
+
+/// Under `--accuracy`, at a checkpoint before the run's end: whether the run stops here,
+/// its error so far past `k.stop_above` (see `run_accuracy`). The checkpoint at this
+/// sample is kept whatever the memory budget, so that the run can be finished from it.
+fn stop_here(
+    k: &mut Checkpoints,
+    integ: &Integrator,
+    balance: &BalanceAccount,
+    samples: usize,
+    n_out: usize,
+    ends: &StepEnds,
+) -> bool {
+    if !k.stop_above.is_finite() || samples >= n_out {
+        return false;
+    }
+    let st = integ.run_stats();
+    // (a run without an estimate has nothing to stop it by)
+    let so_far = st
+        .time_error_estimate
+        .unwrap_or(0.0)
+        .max(load_and_drive_error(&st));
+    k.so_far.push((integ.s.t, so_far));
+    // an error past `ACCURACY_ASYMPTOTIC` runs on: such a run is cheap beside the next
+    // (16 times its steps at most), and its end says more than a projection would
+    if integ.s.t < k.stop_from || so_far <= k.stop_above || so_far > ACCURACY_ASYMPTOTIC {
+        return false;
+    }
+    if k.list.last().map(|c| c.samples) != Some(samples) {
+        k.list.push(Checkpoint {
+            samples,
+            integ: integ.save(),
+            balance: balance.clone(),
+            other_error: load_and_drive_error(&st),
+            ends: ends.clone(),
+        });
+    }
+    k.stopped = Some((integ.s.t, so_far));
+    true
 }
 
 /// Under `--accuracy`, a run whose step does not divide the output interval steps evenly
@@ -3699,6 +3894,9 @@ async fn run_fixed(
                 if next >= next_checkpoint || next == n_out {
                     keep_checkpoint(k, &integ, &balance, next, n_out, &ends);
                     next_checkpoint = next + k.every;
+                    if stop_here(k, &integ, &balance, next, n_out, &ends) {
+                        break;
+                    }
                 }
             }
         }
@@ -3717,7 +3915,11 @@ async fn run_fixed(
             record(&integ, &mut hist, &mut balance);
             if let Some(k) = keep.as_deref_mut() {
                 if i > 0 && (i % k.every == 0 || i + 1 == n_out) {
-                    keep_checkpoint(k, &integ, &balance, i + 1, n_out, &StepEnds::default());
+                    let ends = StepEnds::default();
+                    keep_checkpoint(k, &integ, &balance, i + 1, n_out, &ends);
+                    if stop_here(k, &integ, &balance, i + 1, n_out, &ends) {
+                        break;
+                    }
                 }
             }
         }
@@ -3853,19 +4055,11 @@ mod tests {
         let model = crate::model::compile::load(path.as_ref(), &[("t_end".into(), 2.0)]).unwrap();
         let ctx = RunContext::default();
         let one = {
-            let mut k = Checkpoints {
-                every: 40,
-                budget: usize::MAX,
-                list: Vec::new(),
-            };
+            let mut k = Checkpoints::new(40, usize::MAX);
             run_checkpointed(&model, &ctx, &mut k);
             k.list[0].integ.bytes()
         };
-        let mut keep = Checkpoints {
-            every: 4,
-            budget: budget * one,
-            list: Vec::new(),
-        };
+        let mut keep = Checkpoints::new(4, budget * one);
         run_checkpointed(&model, &ctx, &mut keep);
         fn run_checkpointed(model: &crate::model::Model, ctx: &RunContext, keep: &mut Checkpoints) {
             let slot = Slot::new();

@@ -396,8 +396,10 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 "dt": stats.accuracy_dt,
                 "steps_all_runs": stats.accuracy_steps,
                 "newton_iterations_all_runs": stats.accuracy_newton_iterations,
-                "history": stats.accuracy_history.iter().map(|(dt, e, n, from)| serde_json::json!({
-                    "dt": dt, "estimate": e, "steps": n, "from": from,
+                "history": stats.accuracy_history.iter().map(|r| serde_json::json!({
+                    "dt": r.dt, "estimate": r.estimate, "steps": r.steps, "from": r.from,
+                    "stopped_at": r.stopped_at.map(|(t, _)| t),
+                    "error_when_stopped": r.stopped_at.map(|(_, e)| e),
                 })).collect::<Vec<_>>(),
             })),
             "time_error_estimate": stats.time_error_estimate,
@@ -446,8 +448,14 @@ pub(crate) fn run(args: &RunArgs) -> anyhow::Result<()> {
                 stats.accuracy_steps,
                 stats.accuracy_dt.unwrap_or(f64::NAN)
             );
-            for (dt, e, n, from) in &stats.accuracy_history {
-                eprintln!("  dt {dt:e} s from t = {from} s: {n} steps, estimate {e:.3e}");
+            for r in &stats.accuracy_history {
+                let stopped = r.stopped_at.map_or(String::new(), |(t, e)| {
+                    format!(", stopped at t = {t} s with {e:.3e} so far")
+                });
+                eprintln!(
+                    "  dt {:e} s from t = {} s: {} steps, estimate {:.3e}{stopped}",
+                    r.dt, r.from, r.steps, r.estimate
+                );
             }
         }
     }
