@@ -1022,6 +1022,132 @@ fn the_rotating_cantilever_at_high_speed_converges_under_accuracy_control_from_a
     }
 }
 
+/// The runs `--accuracy` made, from `run --json`'s `accuracy.history`.
+fn accuracy_runs(v: &Value) -> &Vec<Value> {
+    v["accuracy"]["history"].as_array().unwrap()
+}
+
+#[test]
+fn a_run_that_cannot_meet_its_target_stops_early_and_the_result_still_meets_it() {
+    // The rotating cantilever (10 elements, 4 s) from dt = 0.08 at 5e-3: its third run,
+    // at 3.1e-4 s, reads 2.2e-2 whole (measured) and passes twice the target at 1.6 s,
+    // after a quarter of its span: it stops there, and the fourth run is predicted from
+    // its error so far grown over the rest (`ACCURACY_STOP`). The result must meet the
+    // target against a run at 3.9e-5 s (itself within 7.4e-4 of a run at half of it on
+    // the 30-element scene; the tolerance is the request itself), and the stopped run
+    // must have made fewer steps than it would whole.
+    let tol = 5e-3;
+    let base = [
+        "models/rotating_cantilever.toml",
+        "--set",
+        "elements=10",
+        "--set",
+        "t_end=4",
+        "--mesh-check",
+        "never",
+    ];
+    let mut a = base.to_vec();
+    a.extend(["--set", "dt=0.08", "--accuracy", "5e-3"]);
+    let adaptive = run_json(&a);
+    let mut r = base.to_vec();
+    r.extend(["--set", "dt=3.90625e-5"]);
+    let reference = run_json(&r);
+    assert!(warnings(&adaptive).is_empty(), "{adaptive}");
+    let runs = accuracy_runs(&adaptive);
+    let stopped: Vec<&Value> = runs.iter().filter(|h| !h["stopped_at"].is_null()).collect();
+    assert!(!stopped.is_empty(), "no run stopped: {runs:?}");
+    for h in &stopped {
+        let (t, e, dt) = (
+            h["stopped_at"].as_f64().unwrap(),
+            h["error_when_stopped"].as_f64().unwrap(),
+            h["dt"].as_f64().unwrap(),
+        );
+        assert!(
+            (1.0..4.0).contains(&t),
+            "stopped before a quarter or at the end: {h}"
+        );
+        assert!(e > 2.0 * tol, "stopped below twice the target: {h}");
+        assert!(
+            h["estimate"].as_f64().unwrap() >= e,
+            "projected below its error so far: {h}"
+        );
+        let whole = (4.0 / dt).ceil() as u64;
+        assert!(
+            h["steps"].as_u64().unwrap() < whole,
+            "{h}: not fewer than {whole} steps"
+        );
+    }
+    let last = runs.last().unwrap();
+    assert!(
+        last["stopped_at"].is_null(),
+        "the result is a stopped run: {runs:?}"
+    );
+    let all: u64 = runs.iter().map(|h| h["steps"].as_u64().unwrap()).sum();
+    assert_eq!(adaptive["accuracy"]["steps_all_runs"].as_u64(), Some(all));
+    for s in ["tip_flap", "root_moment"] {
+        let e = history_error(&adaptive, &reference, s);
+        eprintln!("{s}: {e:.2e} of its range off dt = 3.9e-5 s ({all} steps in all runs)");
+        assert!(e <= tol, "{s}: {e}");
+    }
+}
+
+#[test]
+fn a_stopped_run_that_must_be_the_result_is_finished_as_the_same_run_whole() {
+    // Under a step limit of 20 000 the run after the stopped one (35 267 steps,
+    // measured) is not made: the stopped run, at 3.125e-4 s, is the result after all and
+    // goes on from where it stopped. It must be whole (12 800 steps), its estimate the
+    // same run's at that fixed step without `--accuracy` (to round-off: its transported
+    // error is restored from the checkpoint, not restarted), and the target warned unmet.
+    let base = [
+        "models/rotating_cantilever.toml",
+        "--set",
+        "elements=10",
+        "--set",
+        "t_end=4",
+        "--mesh-check",
+        "never",
+        "--json",
+    ];
+    let mut a = vec!["run"];
+    a.extend(base);
+    a.extend(["--set", "dt=0.08", "--accuracy", "5e-3"]);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_latdyn"))
+        .args(&a)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("LATDYN_LIMITS", "steps=20000")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let adaptive: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mut f = vec!["run"];
+    f.extend(base);
+    f.extend(["--set", "dt=3.125e-4"]);
+    let fixed = common::latdyn_json(&f);
+    let w = warnings(&adaptive).join("\n");
+    assert!(
+        w.contains("was not met") && w.contains("over the limit"),
+        "{w}"
+    );
+    let last = accuracy_runs(&adaptive).last().unwrap();
+    assert_eq!(last["dt"].as_f64(), Some(3.125e-4), "{last}");
+    assert!(last["stopped_at"].is_null(), "{last}");
+    assert_eq!(last["steps"].as_u64(), Some(12_800), "{last}");
+    assert_eq!(adaptive["steps"].as_u64(), Some(12_800));
+    let (e, e_fixed) = (
+        adaptive["time_error_estimate"].as_f64().unwrap(),
+        fixed["time_error_estimate"].as_f64().unwrap(),
+    );
+    assert_eq!(last["estimate"].as_f64(), Some(e));
+    assert!(
+        (e - e_fixed).abs() <= 1e-9 * e_fixed,
+        "{e} against {e_fixed}"
+    );
+}
+
 #[test]
 fn a_load_pulse_that_falls_between_the_steps_is_warned_and_refined_under_accuracy_control() {
     // The rotating cantilever's smooth 0.05 s tip pulse at dt = 0.1: both ends of the first
