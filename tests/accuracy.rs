@@ -1022,6 +1022,18 @@ fn the_rotating_cantilever_at_high_speed_converges_under_accuracy_control_from_a
     }
 }
 
+/// The rotating cantilever on 10 elements over 4 s, without its mesh twin: the scene of
+/// the tests of runs that stop.
+const CANTILEVER_4S: [&str; 7] = [
+    "models/rotating_cantilever.toml",
+    "--set",
+    "elements=10",
+    "--set",
+    "t_end=4",
+    "--mesh-check",
+    "never",
+];
+
 /// The runs `--accuracy` made, from `run --json`'s `accuracy.history`.
 fn accuracy_runs(v: &Value) -> &Vec<Value> {
     v["accuracy"]["history"].as_array().unwrap()
@@ -1037,19 +1049,10 @@ fn a_run_that_cannot_meet_its_target_stops_early_and_the_result_still_meets_it()
     // the 30-element scene; the tolerance is the request itself), and the stopped run
     // must have made fewer steps than it would whole.
     let tol = 5e-3;
-    let base = [
-        "models/rotating_cantilever.toml",
-        "--set",
-        "elements=10",
-        "--set",
-        "t_end=4",
-        "--mesh-check",
-        "never",
-    ];
-    let mut a = base.to_vec();
+    let mut a = CANTILEVER_4S.to_vec();
     a.extend(["--set", "dt=0.08", "--accuracy", "5e-3"]);
     let adaptive = run_json(&a);
-    let mut r = base.to_vec();
+    let mut r = CANTILEVER_4S.to_vec();
     r.extend(["--set", "dt=3.90625e-5"]);
     let reference = run_json(&r);
     assert!(warnings(&adaptive).is_empty(), "{adaptive}");
@@ -1098,35 +1101,13 @@ fn a_stopped_run_that_must_be_the_result_is_finished_as_the_same_run_whole() {
     // goes on from where it stopped. It must be whole (12 800 steps), its estimate the
     // same run's at that fixed step without `--accuracy` (to round-off: its transported
     // error is restored from the checkpoint, not restarted), and the target warned unmet.
-    let base = [
-        "models/rotating_cantilever.toml",
-        "--set",
-        "elements=10",
-        "--set",
-        "t_end=4",
-        "--mesh-check",
-        "never",
-        "--json",
-    ];
     let mut a = vec!["run"];
-    a.extend(base);
-    a.extend(["--set", "dt=0.08", "--accuracy", "5e-3"]);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_latdyn"))
-        .args(&a)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("LATDYN_LIMITS", "steps=20000")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let adaptive: Value = serde_json::from_slice(&out.stdout).unwrap();
-    let mut f = vec!["run"];
-    f.extend(base);
+    a.extend(CANTILEVER_4S);
+    a.extend(["--set", "dt=0.08", "--accuracy", "5e-3", "--json"]);
+    let adaptive = common::latdyn_json_env(&a, &[("LATDYN_LIMITS", "steps=20000")]);
+    let mut f = CANTILEVER_4S.to_vec();
     f.extend(["--set", "dt=3.125e-4"]);
-    let fixed = common::latdyn_json(&f);
+    let fixed = run_json(&f);
     let w = warnings(&adaptive).join("\n");
     assert!(
         w.contains("was not met") && w.contains("over the limit"),

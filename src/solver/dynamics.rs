@@ -3621,7 +3621,10 @@ fn load_and_drive_error(st: &RunStats) -> f64 {
 
 /// Keeps a checkpoint of `integ` after `samples` of the run's `n_out` samples, within
 /// the memory budget of `k` (the run's last state is kept anyway, for the ranges it ends
-/// with); a large model keeps fewer: `k.every` grows to fit.
+/// with); a large model keeps fewer: `k.every` grows to fit. Returns whether the run
+/// stops here, under `--accuracy` before its end, its error so far past `k.stop_above`
+/// (see `run_accuracy`); the checkpoint at a stop is kept whatever the budget, so that
+/// the run can be finished from it.
 fn keep_checkpoint(
     k: &mut Checkpoints,
     integ: &Integrator,
@@ -3629,60 +3632,36 @@ fn keep_checkpoint(
     samples: usize,
     n_out: usize,
     ends: &StepEnds,
-) {
+) -> bool {
+    let st = integ.run_stats();
+    let other_error = load_and_drive_error(&st);
+    let stop = k.stop_above.is_finite() && samples < n_out && {
+        // (a run without an estimate has nothing to stop it by)
+        let so_far = st.time_error_estimate.unwrap_or(0.0).max(other_error);
+        k.so_far.push((integ.s.t, so_far));
+        // an error past `ACCURACY_ASYMPTOTIC` runs on: such a run is cheap beside the
+        // next (16 times its steps at most), and its end says more than a projection
+        let stop =
+            integ.s.t >= k.stop_from && so_far > k.stop_above && so_far <= ACCURACY_ASYMPTOTIC;
+        if stop {
+            k.stopped = Some((integ.s.t, so_far));
+        }
+        stop
+    };
     let saved = integ.save();
     let b = saved.bytes().max(1) + ends.bytes();
     let fit = (k.budget / b).max(1);
     k.every = k.every.max(n_out.div_ceil(fit));
-    let last = samples == n_out;
-    if last || (k.list.len() + 1) * b <= k.budget {
+    if stop || samples == n_out || (k.list.len() + 1) * b <= k.budget {
         k.list.push(Checkpoint {
             samples,
             integ: saved,
             balance: balance.clone(),
-            other_error: load_and_drive_error(&integ.run_stats()),
+            other_error,
             ends: ends.clone(),
         });
     }
-}
-
-/// Under `--accuracy`, at a checkpoint before the run's end: whether the run stops here,
-/// its error so far past `k.stop_above` (see `run_accuracy`). The checkpoint at this
-/// sample is kept whatever the memory budget, so that the run can be finished from it.
-fn stop_here(
-    k: &mut Checkpoints,
-    integ: &Integrator,
-    balance: &BalanceAccount,
-    samples: usize,
-    n_out: usize,
-    ends: &StepEnds,
-) -> bool {
-    if !k.stop_above.is_finite() || samples >= n_out {
-        return false;
-    }
-    let st = integ.run_stats();
-    // (a run without an estimate has nothing to stop it by)
-    let so_far = st
-        .time_error_estimate
-        .unwrap_or(0.0)
-        .max(load_and_drive_error(&st));
-    k.so_far.push((integ.s.t, so_far));
-    // an error past `ACCURACY_ASYMPTOTIC` runs on: such a run is cheap beside the next
-    // (16 times its steps at most), and its end says more than a projection would
-    if integ.s.t < k.stop_from || so_far <= k.stop_above || so_far > ACCURACY_ASYMPTOTIC {
-        return false;
-    }
-    if k.list.last().map(|c| c.samples) != Some(samples) {
-        k.list.push(Checkpoint {
-            samples,
-            integ: integ.save(),
-            balance: balance.clone(),
-            other_error: load_and_drive_error(&st),
-            ends: ends.clone(),
-        });
-    }
-    k.stopped = Some((integ.s.t, so_far));
-    true
+    stop
 }
 
 /// Under `--accuracy`, a run whose step does not divide the output interval steps evenly
@@ -3892,9 +3871,9 @@ async fn run_fixed(
             }
             if let Some(k) = keep.as_deref_mut() {
                 if next >= next_checkpoint || next == n_out {
-                    keep_checkpoint(k, &integ, &balance, next, n_out, &ends);
+                    let stop = keep_checkpoint(k, &integ, &balance, next, n_out, &ends);
                     next_checkpoint = next + k.every;
-                    if stop_here(k, &integ, &balance, next, n_out, &ends) {
+                    if stop {
                         break;
                     }
                 }
@@ -3916,8 +3895,7 @@ async fn run_fixed(
             if let Some(k) = keep.as_deref_mut() {
                 if i > 0 && (i % k.every == 0 || i + 1 == n_out) {
                     let ends = StepEnds::default();
-                    keep_checkpoint(k, &integ, &balance, i + 1, n_out, &ends);
-                    if stop_here(k, &integ, &balance, i + 1, n_out, &ends) {
+                    if keep_checkpoint(k, &integ, &balance, i + 1, n_out, &ends) {
                         break;
                     }
                 }

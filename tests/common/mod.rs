@@ -97,9 +97,15 @@ pub fn rel(a: f64, b: f64) -> f64 {
 
 /// The `latdyn` binary run from the repository root with `args`.
 pub fn latdyn(args: &[&str]) -> std::process::Output {
+    latdyn_env(args, &[])
+}
+
+/// [`latdyn`] with `env` added to its environment.
+pub fn latdyn_env(args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_latdyn"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .envs(env.iter().copied())
         .output()
         .expect("run latdyn")
 }
@@ -107,7 +113,12 @@ pub fn latdyn(args: &[&str]) -> std::process::Output {
 /// [`latdyn`] that must succeed (its stderr in the failure message), its stdout parsed
 /// as the `--json` result object.
 pub fn latdyn_json(args: &[&str]) -> serde_json::Value {
-    let out = latdyn(args);
+    latdyn_json_env(args, &[])
+}
+
+/// [`latdyn_json`] with `env` added to the environment.
+pub fn latdyn_json_env(args: &[&str], env: &[(&str, &str)]) -> serde_json::Value {
+    let out = latdyn_env(args, env);
     assert!(
         out.status.success(),
         "latdyn {args:?}: {}",
