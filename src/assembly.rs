@@ -364,7 +364,8 @@ impl Assembler {
         let g = model.gravity;
         let gfac = if c.inertia { 1.0 } else { c.load_factor };
         let has_gravity = g != [0.0; 3];
-        let need_inertia = c.inertia || has_gravity;
+        // (a statics Jacobian may carry a pseudo-mass too: `statics::relax`)
+        let need_inertia = c.inertia || has_gravity || c.cm != 0.0;
         // taken out for the evaluation (moved, not copied), so no lock is held while a
         // batch member waits for its round
         let mut scratch =

@@ -240,6 +240,86 @@ fn a_hinged_beam_tilted_or_pushed_from_hanging_finds_its_hanging_equilibrium() {
     }
 }
 
+/// On a fine mesh Newton alone does not reach it: its linear update moves the nodes along
+/// the tangents of their arcs, so a swing of 0.165 rad stretched a 32-element beam
+/// (EA = 1e7) by 2e5 N and the next correction swung it back, until the solve ended "not
+/// held" (failed on 32 elements at 0.5, 1.5 and 2.5 rad, on 64 and 128 at 1.5 rad, at
+/// EA = 1e8 on 8, 32 and 64; session 51). Since session 52 statics relaxes such a
+/// mechanism (`statics::relax`: Newton with a pseudo-mass that holds each step's turn to
+/// 0.05 rad). Closed form: the beam hangs straight, its hinge turned back by the tilt,
+/// its tip at z = −L(1 + ρA g L / 2EA) (the weight below each section stretches it):
+/// both to 1e-9 (Newton's tolerance 1e-8 of the forces; the stretch is 5e-7 L). Pushed
+/// by P at its bottom it stands at tan θ = 2P/mg on 32 elements too (to 1e-5, as on 8:
+/// its bending under P). No warning: the mesh check's twin (twice the elements) solves
+/// as well.
+#[test]
+fn a_hinged_beam_tilted_far_from_hanging_finds_its_hanging_equilibrium_on_fine_meshes() {
+    let g = 9.81;
+    for (n, ea, a) in [
+        (32, 1e7, 0.5),
+        (32, 1e7, 1.5),
+        (64, 1e8, 1.5),
+        (128, 1e7, 1.5),
+    ] {
+        let tilted = hanging_beam(1e4, -g)
+            .replace("L = 1.0\n", "L = 1.0\na = 0.0\n")
+            .replace("EA = 1e7", "EA = \"EA\"")
+            .replace("L = 1.0\n", "L = 1.0\nEA = 1e7\n")
+            .replace(
+                r#"position = [0, 0, "-L"]"#,
+                r#"position = ["L*sin(a)", 0, "-L*cos(a)"]"#,
+            )
+            + "[[sensors]]\nname = \"bottom\"\ntype = \"position\"\nnode = \"bottom\"\n";
+        let p = write("tilted_fine.toml", &tilted);
+        let (n, ea, a) = (
+            format!("elements={n}"),
+            format!("EA={ea}"),
+            format!("a={a}"),
+        );
+        let args = [
+            "statics",
+            p.to_str().unwrap(),
+            "--set",
+            &n,
+            "--set",
+            &ea,
+            "--set",
+            &a,
+        ];
+        let st = latdyn_json(&[&args[..], &["--json"]].concat());
+        let case = format!("{n} {ea} {a}: {st}");
+        let tip = st["sensors"]["bottom"].as_array().unwrap();
+        let (x, z) = (tip[0].as_f64().unwrap(), tip[2].as_f64().unwrap());
+        let ea: f64 = ea[3..].parse().unwrap();
+        let a: f64 = a[2..].parse().unwrap();
+        assert!(x.abs() < 1e-9, "{case}");
+        assert!((z + 1.0 + g / (2.0 * ea)).abs() < 1e-9, "{case}");
+        let turned = st["sensors"]["pivot"][0].as_f64().unwrap();
+        assert!(
+            (turned + a).abs() < 1e-9 || (turned - a).abs() < 1e-9,
+            "{case}"
+        );
+        assert_eq!(st["warnings"], serde_json::json!([]), "{case}");
+    }
+
+    let push = 5.0;
+    let pushed = format!(
+        "{}[[loads]]\nnode = \"bottom\"\nforce = [{push}, 0, 0]\n\
+         [[sensors]]\nname = \"bottom\"\ntype = \"position\"\nnode = \"bottom\"\n",
+        hanging_beam(1e4, -g).replace("elements = 8", "elements = 32")
+    );
+    let p = write("pushed_fine.toml", &pushed);
+    let st = latdyn_json(&["statics", p.to_str().unwrap(), "--json"]);
+    let tip = st["sensors"]["bottom"].as_array().unwrap();
+    let angle = tip[0].as_f64().unwrap().atan2(-tip[2].as_f64().unwrap());
+    let want = (2.0 * push / g).atan();
+    assert!(
+        (angle - want).abs() < 1e-5,
+        "{angle} rad against {want}: {st}"
+    );
+    assert_eq!(st["warnings"], serde_json::json!([]), "{st}");
+}
+
 /// A straight beam hanging from a spherical joint: its twist about its own axis has no
 /// stiffness and the loads do no work along it, but every point's position is
 /// determined. `statics` gives the equilibrium with a note that the turn is neutral, and

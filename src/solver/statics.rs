@@ -71,13 +71,15 @@ pub struct StaticsReport {
 /// not that it could not start (as it did until session 47).
 pub const NOT_HELD_AT_REFERENCE: &str = "the stiffness is singular at the reference state (a \
      mechanism or a body that is not held), and Newton, started from it by steps that only \
-     strain the structure, found no equilibrium under the loads";
+     strain the structure, found no equilibrium under the loads, nor did a damped relaxation \
+     from it";
 /// What the loads leave free where Newton converged from a singular reference.
 pub const NOT_HELD_AT_SOLUTION: &str = "the loads do not hold the model: the stiffness at the \
      equilibrium found is singular (a mechanism or a body that is not held)";
 /// A load-held mechanism far from its reference is the case Newton's linear update of the
 /// nodes does not reach (a hinged beam pushed through 0.8 rad on 32 elements: a swing
-/// clipped to 0.5 rad stretches it 12 %), so the advice names it.
+/// clipped to 0.5 rad stretches it 12 %); [`relax`] reaches most such (see its tests),
+/// and where it too fails the advice names the case.
 const FAR_SWING_HINT: &str = "; if the loads do hold it, but far from the reference (a hinged \
      member they swing through a large angle), start the model nearer that equilibrium";
 
@@ -282,6 +284,134 @@ const LOAD_STEP_GROWTH: f64 = 1.5;
 const EASY_STEP_ITERS: usize = 5;
 const MIN_LOAD_STEP: f64 = 1e-7;
 
+/// [`relax`]: the largest angle one of its steps may turn [rad]. Newton's update moves
+/// the nodes of a swinging member along the tangents of their arcs, which stretches it
+/// by θ²/2 of its length: 0.165 rad stretched a hinged beam of EA = 1e7 N by 2e5 N where
+/// the residual had been 52 N, and the next correction swung it back (session 51). At
+/// 0.05 rad the stretch (1.25e-3) is one Newton correction of the stiff directions, and
+/// a swing of 1.5 rad takes 30 steps.
+const RELAX_ANGLE: f64 = 0.05;
+/// [`relax`] gives up once its steps have turned the model through this many radians
+/// in all (two whole turns): an equilibrium that far is no equilibrium of this state
+/// (a mechanism its loads drive round, which the diagnosis then names).
+const RELAX_TURN: f64 = 4.0 * std::f64::consts::PI;
+/// [`relax`]'s pseudo-mass: the first one tried [1/s²], and the share of it below which
+/// it is dropped (Newton itself, converging quadratically).
+const RELAX_MASS: f64 = 1.0;
+const RELAX_MASS_FLOOR: f64 = 1e-12;
+/// [`relax`] stops after this many steps if they have not turned the model by
+/// `RELAX_ANGLE` in all.
+const RELAX_SWING_STEPS: usize = 8;
+/// [`relax`]'s iterations at most (a steady 0.05 rad per step covers `RELAX_TURN` in 250).
+const RELAX_MAX_ITERS: usize = 2000;
+
+/// Pseudo-transient continuation (Kelley and Keyes 1998) for a mechanism its loads hold
+/// far from its reference, where Newton from the reference fails (a hinged beam tilted
+/// 0.5 rad from hanging, on 32 elements or more; it had solved on 8 and 16, erratically):
+/// each step solves (K + c M) Δ = −r, the mass term slowing the soft motions (the swing)
+/// and leaving the stiff ones (stretch, bending) Newton's. c is raised fourfold (and the
+/// step solved again) while the step would turn anything by more than `RELAX_ANGLE`, and
+/// lowered fourfold after each step under a quarter of it, down to 0: near the
+/// equilibrium the steps are Newton's. The equilibrium reached is the one the structure
+/// settles into when released under its loads with its motion damped out (stable where
+/// one is near; the report checks it). Once the residual converges, [`newton`] confirms it
+/// with the plain tangent. Some(iterations) if it converged, None where it turned through
+/// `RELAX_TURN` (or moved points as far), turned nothing in `RELAX_SWING_STEPS` steps, ran
+/// `RELAX_MAX_ITERS` steps, or Newton at c = 0 failed for `max_iter`.
+fn relax(
+    model: &Model,
+    asm: &Assembler,
+    sys: &mut NewtonSystem,
+    s: &mut State,
+    lambda: f64,
+) -> Result<Option<usize>, StaticsError> {
+    let mut dx = vec![0.0; model.n_eq];
+    let mut conv = Convergence::new(model.solver.tol, asm.eval.unit_roundoff());
+    let mut cm = RELAX_MASS;
+    let (mut turned, mut plain, mut small) = (0.0f64, 0usize, 0usize);
+    let mut last_correction = f64::INFINITY;
+    let (mut moved, size) = (0.0f64, coord_scale(model));
+    let mut applied = 0;
+    for iter in 0..RELAX_MAX_ITERS {
+        joint::update_kinematics(model, s);
+        let c = Coeffs {
+            cm,
+            ..Coeffs::statics(lambda)
+        };
+        let info = sys.evaluate(model, asm, s, c, true);
+        let res = norm_inf(&sys.r);
+        if !res.is_finite() {
+            return Ok(None);
+        }
+        let scale = info.as_ref().map_or(0.0, |i| i.force_scale);
+        // (or stalled at the coordinates' round-off, as in `newton`: a stiff member's
+        // residual has a floor above `tol` there)
+        if conv.converged(res, scale) || conv.stalled_at_roundoff(last_correction, size) {
+            return Ok(newton(model, asm, sys, s, lambda, None)?.map(|n| iter + n));
+        }
+        // a pseudo-mass too small to make K + c M regular (a free motion at the state) is
+        // raised like one whose step turns too far
+        let solved = info.is_ok() && sys.solve_neg_residual(&mut dx).is_ok();
+        let turn = dx
+            .iter()
+            .zip(&model.rot_eq)
+            .filter(|(_, r)| **r)
+            .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
+        if !solved || !turn.is_finite() || turn > RELAX_ANGLE {
+            // where the mass term dominates the turn falls as 1/c: aim at 0.8 of the bound
+            let raise = match solved && turn.is_finite() {
+                true => (turn / (0.8 * RELAX_ANGLE)).max(2.0),
+                false => 4.0,
+            };
+            cm = if cm == 0.0 {
+                RELAX_MASS * RELAX_MASS_FLOOR
+            } else {
+                raise * cm
+            };
+            (plain, small) = (0, 0);
+            continue;
+        }
+        joint::apply_increment(model, s, &dx);
+        last_correction = norm_inf(&dx);
+        turned += turn;
+        moved += dx
+            .iter()
+            .zip(&model.rot_eq)
+            .filter(|(_, r)| !**r)
+            .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
+        // a member swung through `RELAX_TURN` moves its points by as many lengths of
+        // the model at most: a body that went further is not held (it drifts off)
+        if turned > RELAX_TURN || moved > RELAX_TURN * size {
+            return Ok(None);
+        }
+        // nothing swings: the reference's singularity is not a mechanism's (a tangent
+        // too ill-conditioned to factor), which the mass term only creeps through
+        applied += 1;
+        if applied == RELAX_SWING_STEPS && turned < RELAX_ANGLE {
+            return Ok(None);
+        }
+        if cm == 0.0 {
+            plain += 1;
+            if plain >= model.solver.max_iter.max(1) {
+                return Ok(None);
+            }
+        } else if turn < 0.25 * RELAX_ANGLE {
+            // two in a row: one alone is the stiff directions' correction after a swing
+            // (the stretch it caused), which turns little whatever c is
+            small += 1;
+            if small >= 2 {
+                cm *= 0.25;
+                if cm < RELAX_MASS * RELAX_MASS_FLOOR {
+                    cm = 0.0;
+                }
+            }
+        } else {
+            small = 0;
+        }
+    }
+    Ok(None)
+}
+
 /// Solve for static equilibrium under the full loads, starting from `s`.
 pub fn solve(model: &Model, s: &mut State) -> Result<StaticsReport, StaticsError> {
     solve_until(model, s, None)
@@ -363,7 +493,28 @@ pub fn solve_until(
                 dl *= 0.5;
                 if dl < MIN_LOAD_STEP || shifted_failures >= SHIFTED_TRIES {
                     joint::update_kinematics(model, s);
-                    if let Some(e) = diagnose(model, s, lambda) {
+                    let diagnosis = diagnose(model, s, lambda);
+                    // no step from the reference, where the model is a mechanism (not a
+                    // tangent too ill-conditioned to factor, which `relax` would creep
+                    // through at one factorization a step: the cantilever on 6 000
+                    // elements took 21 s more to fail): the loads may hold it far from
+                    // there. The full loads at once, as a released structure feels them.
+                    // (or a model too large to name its free motions, where `relax` tells
+                    // by the turns of its first steps)
+                    let mechanism = matches!(diagnosis, Some(StaticsError::FreeMotion { .. }))
+                        || model.n_eq > MAX_DIAGNOSIS_DOFS;
+                    if rep.load_steps == 0 && shifted && mechanism {
+                        let start = s.clone();
+                        if let Some(iters) = relax(model, &asm, &mut sys, s, 1.0)? {
+                            lambda = 1.0;
+                            rep.load_steps += 1;
+                            rep.newton_iterations += iters;
+                            continue;
+                        }
+                        *s = start;
+                        joint::update_kinematics(model, s);
+                    }
+                    if let Some(e) = diagnosis {
                         return Err(e);
                     }
                     // with no step carried, the residual of the last one tried, which
