@@ -251,7 +251,7 @@ fn a_hinged_beam_tilted_or_pushed_from_hanging_finds_its_hanging_equilibrium() {
 /// both to 1e-9 (Newton's tolerance 1e-8 of the forces; the stretch is 5e-7 L). Pushed
 /// by P at its bottom it stands at tan θ = 2P/mg on 32 elements too (to 1e-5, as on 8:
 /// its bending under P). No warning: the mesh check's twin (twice the elements) solves
-/// as well.
+/// as well. The same holds for a closed loop (below).
 #[test]
 fn a_hinged_beam_tilted_far_from_hanging_finds_its_hanging_equilibrium_on_fine_meshes() {
     let g = 9.81;
@@ -318,6 +318,46 @@ fn a_hinged_beam_tilted_far_from_hanging_finds_its_hanging_equilibrium_on_fine_m
         "{angle} rad against {want}: {st}"
     );
     assert_eq!(st["warnings"], serde_json::json!([]), "{st}");
+
+    // a closed loop with a rigid body: the shipped four-bar hanging (gravity +y), its
+    // cranks tilted 0.5 and 1.2 rad, on 32 elements a crank (failed "not held" before
+    // session 52; 4 elements solved). It hangs straight again, the coupler above the
+    // middle of the ground hinges (to 1e-9), raised by the cranks' stretch: half the
+    // coupler's weight over L/EA and their own, ρA g L²/2EA (to 1e-9 of L).
+    let fourbar = std::fs::read_to_string("models/fourbar.toml")
+        .unwrap()
+        .replace("gravity = [0, -9.81, 0]", "gravity = [0, 9.81, 0]")
+        .replace("elements = 4\n", "elements = 32\na = 0.5\n")
+        .replace(
+            "position = [0, 1, 0]",
+            r#"position = ["sin(a)", "cos(a)", 0]"#,
+        )
+        .replace(
+            "position = [1, 1, 0]",
+            r#"position = ["1+sin(a)", "cos(a)", 0]"#,
+        )
+        .replace(
+            "position = [0.5, 1, 0]",
+            r#"position = ["0.5+sin(a)", "cos(a)", 0]"#,
+        );
+    let p = write("fourbar_tilted.toml", &fourbar);
+    let (mc, ea) = (5.0, 2e7);
+    let stretch = 0.5 * mc * g / ea + g / (2.0 * ea);
+    for a in [0.5, 1.2] {
+        let a_set = format!("a={a}");
+        let st = latdyn_json(&["statics", p.to_str().unwrap(), "--set", &a_set, "--json"]);
+        let c = st["sensors"]["coupler"].as_array().unwrap();
+        let (x, y) = (c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
+        assert!((x - 0.5).abs() < 1e-9, "{a}: {st}");
+        assert!(
+            (y - 1.0 - stretch).abs() < 1e-9,
+            "{a}: {y} against {}",
+            1.0 + stretch
+        );
+        let g1 = st["sensors"]["g1"][0].as_f64().unwrap();
+        assert!((g1.abs() - a).abs() < 1e-9, "{a}: {st}");
+        assert_eq!(st["warnings"], serde_json::json!([]), "{a}: {st}");
+    }
 }
 
 /// A straight beam hanging from a spherical joint: its twist about its own axis has no
