@@ -243,10 +243,11 @@ fn a_hinged_beam_tilted_or_pushed_from_hanging_finds_its_hanging_equilibrium() {
 /// On a fine mesh Newton alone does not reach it: its linear update moves the nodes along
 /// the tangents of their arcs, so a swing of 0.165 rad stretched a 32-element beam
 /// (EA = 1e7) by 2e5 N and the next correction swung it back, until the solve ended "not
-/// held" (failed on 32 elements at 0.5, 1.5 and 2.5 rad, on 64 and 128 at 1.5 rad, at
-/// EA = 1e8 on 8, 32 and 64; session 51). Since session 52 statics relaxes such a
-/// mechanism (`statics::relax`: Newton with a pseudo-mass that holds each step's turn to
-/// 0.05 rad). Closed form: the beam hangs straight, its hinge turned back by the tilt,
+/// held" (session 51's code, measured in session 52: 11 of 30 meshes and tilts failed, on
+/// 32 elements at 0.5, 1.5 and 2.5 rad and on 64 and 128 at 1.5 and 2.5 with EA = 1e7; at
+/// EA = 1e8 on 32 and 64 at 1.5 rad and on 128 at 0.5 and 1.5). Since session 52 statics
+/// relaxes such a mechanism (`statics::relax`: Newton with a pseudo-mass that holds each
+/// step's turn to 0.05 rad). Closed form: the beam hangs straight, its hinge turned back by the tilt,
 /// its tip at z = −L(1 + ρA g L / 2EA) (the weight below each section stretches it):
 /// both to 1e-9 (Newton's tolerance 1e-8 of the forces; the stretch is 5e-7 L). Pushed
 /// by P at its bottom it stands at tan θ = 2P/mg on 32 elements too (to 1e-5, as on 8:
