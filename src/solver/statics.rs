@@ -312,10 +312,10 @@ const RELAX_MAX_ITERS: usize = 2000;
 /// far from its reference, where Newton from the reference fails (a hinged beam tilted
 /// 0.5 rad from hanging, on 32 elements or more; it had solved on 8 and 16, erratically):
 /// each step solves (K + c M) Δ = −r, the mass term slowing the soft motions (the swing)
-/// and leaving the stiff ones (stretch, bending) Newton's. c is raised fourfold (and the
-/// step solved again) while the step would turn anything by more than `RELAX_ANGLE`, and
-/// lowered fourfold after each step under a quarter of it, down to 0: near the
-/// equilibrium the steps are Newton's. The equilibrium reached is the one the structure
+/// and leaving the stiff ones (stretch, bending) Newton's. c is raised (by the turn's
+/// excess over 0.8 `RELAX_ANGLE`, at least twofold; the step solved again) while the step
+/// would turn anything by more than `RELAX_ANGLE`, and lowered fourfold after two steps in
+/// a row under a quarter of it, down to 0: near the equilibrium the steps are Newton's. The equilibrium reached is the one the structure
 /// settles into when released under its loads with its motion damped out (stable where
 /// one is near; the report checks it). Once the residual converges, [`newton`] confirms it
 /// with the plain tangent. Some(iterations) if it converged, None where it turned through
