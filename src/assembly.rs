@@ -857,15 +857,19 @@ impl DeformationAngle {
 /// Scale a Newton increment so no angle changes by more than `max_angle` radians: full
 /// steps across large rotations land on spurious equilibria.
 pub fn limit_rotation_step(model: &Model, dx: &mut [f64], max_angle: f64) {
-    let big = dx
-        .iter()
-        .zip(&model.rot_eq)
-        .filter(|(_, r)| **r)
-        .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
+    let big = largest_step(model, dx, true);
     if big > max_angle {
         let f = max_angle / big;
         dx.iter_mut().for_each(|x| *x *= f);
     }
+}
+
+/// Largest magnitude of an increment's angle components (`angles`) or of its others.
+pub fn largest_step(model: &Model, dx: &[f64], angles: bool) -> f64 {
+    dx.iter()
+        .zip(&model.rot_eq)
+        .filter(|(_, r)| **r == angles)
+        .fold(0.0f64, |m, (x, _)| m.max(x.abs()))
 }
 
 /// Residual by equation from the by-dof generalized forces (frozen dofs give 0).

@@ -295,10 +295,10 @@ const RELAX_ANGLE: f64 = 0.05;
 /// in all (two whole turns): an equilibrium that far is no equilibrium of this state
 /// (a mechanism its loads drive round, which the diagnosis then names).
 const RELAX_TURN: f64 = 4.0 * std::f64::consts::PI;
-/// [`relax`]'s pseudo-mass: the first one tried [1/s²], and the share of it below which
-/// it is dropped (Newton itself, converging quadratically).
+/// [`relax`]'s pseudo-mass: the first one tried [1/s²], and the one below which it is
+/// dropped (Newton itself, converging quadratically).
 const RELAX_MASS: f64 = 1.0;
-const RELAX_MASS_FLOOR: f64 = 1e-12;
+const RELAX_MASS_MIN: f64 = 1e-12 * RELAX_MASS;
 /// [`relax`] on a model too large to name its free motions (where the reference may be
 /// singular only to working precision, not a mechanism) stops after this many steps if
 /// they have not turned the model by `RELAX_ANGLE` in all: the cantilever on 6 000
@@ -315,9 +315,9 @@ const RELAX_MAX_ITERS: usize = 2000;
 /// and leaving the stiff ones (stretch, bending) Newton's. c is raised (by the turn's
 /// excess over 0.8 `RELAX_ANGLE`, at least twofold; the step solved again) while the step
 /// would turn anything by more than `RELAX_ANGLE`, and lowered fourfold after two steps in
-/// a row under a quarter of it, down to 0: near the equilibrium the steps are Newton's. The equilibrium reached is the one the structure
-/// settles into when released under its loads with its motion damped out (stable where
-/// one is near; the report checks it). Once the residual converges, [`newton`] confirms it
+/// a row under a quarter of it, down to 0: near the equilibrium the steps are Newton's.
+/// The equilibrium reached is the one the structure settles into when released under its
+/// loads with its motion damped out (stable where one is near; the report checks it). Once the residual converges, [`newton`] confirms it
 /// with the plain tangent. Some(iterations) if it converged, None where it turned through
 /// `RELAX_TURN` (or moved points as far), turned nothing in `RELAX_SWING_STEPS` steps
 /// (with `swing_test`), ran `RELAX_MAX_ITERS` steps, or Newton at c = 0 failed for
@@ -362,11 +362,7 @@ fn relax(
         // a pseudo-mass too small to make K + c M regular (a free motion at the state) is
         // raised like one whose step turns too far
         let solved = info.is_ok() && sys.solve_neg_residual(&mut dx).is_ok();
-        let turn = dx
-            .iter()
-            .zip(&model.rot_eq)
-            .filter(|(_, r)| **r)
-            .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
+        let turn = crate::assembly::largest_step(model, &dx, true);
         if !solved || !turn.is_finite() || turn > RELAX_ANGLE {
             // where the mass term dominates the turn falls as 1/c: aim at 0.8 of the bound
             let raise = match solved && turn.is_finite() {
@@ -374,7 +370,7 @@ fn relax(
                 false => 4.0,
             };
             cm = if cm == 0.0 {
-                RELAX_MASS * RELAX_MASS_FLOOR
+                RELAX_MASS_MIN
             } else {
                 raise * cm
             };
@@ -384,11 +380,7 @@ fn relax(
         joint::apply_increment(model, s, &dx);
         last_correction = norm_inf(&dx);
         turned += turn;
-        moved += dx
-            .iter()
-            .zip(&model.rot_eq)
-            .filter(|(_, r)| !**r)
-            .fold(0.0f64, |m, (x, _)| m.max(x.abs()));
+        moved += crate::assembly::largest_step(model, &dx, false);
         // a member swung through `RELAX_TURN` moves its points by as many lengths of
         // the model at most: a body that went further is not held (it drifts off)
         if turned > RELAX_TURN || moved > RELAX_TURN * size {
@@ -411,7 +403,7 @@ fn relax(
             small += 1;
             if small >= 2 {
                 cm *= 0.25;
-                if cm < RELAX_MASS * RELAX_MASS_FLOOR {
+                if cm < RELAX_MASS_MIN {
                     cm = 0.0;
                 }
             }
@@ -504,13 +496,12 @@ pub fn solve_until(
                 if dl < MIN_LOAD_STEP || shifted_failures >= SHIFTED_TRIES {
                     joint::update_kinematics(model, s);
                     let diagnosis = diagnose(model, s, lambda);
-                    // no step from the reference, where the model is a mechanism (not a
-                    // tangent too ill-conditioned to factor, which `relax` would creep
-                    // through at one factorization a step: the cantilever on 6 000
-                    // elements took 21 s more to fail): the loads may hold it far from
-                    // there. The full loads at once, as a released structure feels them.
-                    // (or a model too large to name its free motions, where `relax` tells
-                    // by the turns of its first steps)
+                    // no step from the reference, where the model is a mechanism: the
+                    // loads may hold it far from there (`relax`, under the full loads at
+                    // once, as a released structure feels them). Not where the reference
+                    // is only too ill-conditioned to factor, which `relax` would creep
+                    // through at a factorization a step (see `RELAX_SWING_STEPS`); a model
+                    // too large to name its free motions is told by its first steps' turns
                     let named = matches!(diagnosis, Some(StaticsError::FreeMotion { .. }));
                     if rep.load_steps == 0 && shifted && (named || model.n_eq > MAX_DIAGNOSIS_DOFS)
                     {
